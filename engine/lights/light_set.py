@@ -1,0 +1,142 @@
+"""All emitters of a scene behind one interface: choose one by power, sample it, evaluate it.
+
+Lights are the analytic ones of `Scene.lights` (indices 0..L-1) followed by the emissive
+triangles (L..L+E-1). Like Cycles, light objects are not geometry: they neither occlude
+shadow rays nor stop other rays; a ray passing through one collects its emission.
+Emissive triangles are ordinary (two-sided) geometry found through `light_of_prim`.
+
+Seed 000: one light per shading point, chosen with probability proportional to its power;
+that pmf enters every light-sampling pdf (also the one used for the emitter-hit MIS weight).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import sampling
+from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, Lights, Materials, Mesh
+from . import shapes
+
+
+def avg(c: np.ndarray) -> np.ndarray:
+    """Mean of RGB: the scalar 'power' of a colour (never 0 for a non-black colour)."""
+    return np.asarray(c, np.float64).mean(axis=-1)
+
+
+@dataclass
+class LightSample:
+    """Light samples for N shading points.
+
+    wi (N,3) unit direction to the light; Le (N,3) radiance arriving along -wi (for delta
+    lights: intensity / d^2 or irradiance); pdf (N,) solid-angle pdf times the selection pmf
+    (for delta lights the pmf alone); delta (N,) bool; shadow_d (N,3) and shadow_tfar (N,):
+    the occlusion segment o + t shadow_d, t < shadow_tfar, to be traced from the offset origin.
+    valid (N,) bool (False where nothing can be sampled: pdf 0).
+    """
+
+    wi: np.ndarray
+    Le: np.ndarray
+    pdf: np.ndarray
+    delta: np.ndarray
+    target: np.ndarray  # (N,3) point on the light; inf-far lights: p + wi * 1e30
+    finite: np.ndarray  # (N,) bool
+    valid: np.ndarray
+
+
+class LightSet:
+    def __init__(self, lights: Lights, mesh: Mesh, materials: Materials, accel, scene_radius: float):
+        self.lights = lights
+        self.n_analytic = len(lights)
+        self.scene_radius = scene_radius
+        # Emissive triangles.
+        tri_Le = materials.emission[mesh.material] if mesh.n_triangles else np.zeros((0, 3))
+        emissive = (avg(tri_Le) > 0) & (accel.area > 0) if mesh.n_triangles else np.zeros(0, bool)
+        self.tri_prim = np.flatnonzero(emissive)
+        self.tri_Le = tri_Le[self.tri_prim]
+        self.tri_area = accel.area[self.tri_prim]
+        self.tri_v0 = accel.v0[self.tri_prim]
+        self.tri_e1 = accel.e1[self.tri_prim]
+        self.tri_e2 = accel.e2[self.tri_prim]
+        self.tri_ng = accel.ng[self.tri_prim]
+        self.light_of_prim = np.full(max(mesh.n_triangles, 1), -1, np.int64)
+        self.light_of_prim[self.tri_prim] = self.n_analytic + np.arange(len(self.tri_prim))
+        power = np.concatenate([shapes.analytic_power(lights, scene_radius),
+                                2.0 * np.pi * self.tri_area * avg(self.tri_Le)])
+        self.count = len(power)
+        self.select = sampling.Distribution1D(power) if self.count and power.sum() > 0 else None
+        self.delta = np.concatenate([shapes.is_delta(lights), np.zeros(len(self.tri_prim), bool)])
+        self.kinds_present = sorted(set(lights.kind.tolist()))
+        self.has_suns = bool(np.any(lights.kind == LIGHT_SUN))
+        self.hittable = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind != LIGHT_SUN))
+
+    @property
+    def empty(self) -> bool:
+        return self.select is None
+
+    def pmf(self, index: np.ndarray) -> np.ndarray:
+        return self.select.pmf(index)
+
+    # ---- next-event estimation ------------------------------------------------------------
+    def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray) -> LightSample:
+        """One light sample per shading point p (N,3) float64; u_select (N,), u (N,2)."""
+        n = len(p)
+        wi = np.zeros((n, 3))
+        wi[:, 2] = 1.0
+        Le = np.zeros((n, 3))
+        pdf_dir = np.zeros(n)
+        target = p + wi
+        finite = np.ones(n, bool)
+        index, pmf, _ = self.select.sample_discrete(u_select)
+        is_tri = index >= self.n_analytic
+        if is_tri.any():
+            rows = np.flatnonzero(is_tri)
+            t = index[rows] - self.n_analytic
+            b = sampling.sample_uniform_triangle(u[rows])
+            y = self.tri_v0[t] + b[:, 1:2] * self.tri_e1[t] + b[:, 2:3] * self.tri_e2[t]
+            wi[rows], pdf_dir[rows], target[rows] = shapes.area_to_solid_angle(
+                p[rows], y, self.tri_ng[t], self.tri_area[t], two_sided=True)
+            Le[rows] = self.tri_Le[t]
+        for kind in self.kinds_present:
+            rows = np.flatnonzero(~is_tri & (self.lights.kind[np.minimum(index, max(self.n_analytic - 1, 0))] == kind))
+            if len(rows):
+                s = shapes.sample_analytic(kind, self.lights, index[rows], p[rows], u[rows])
+                wi[rows], Le[rows], pdf_dir[rows], target[rows], finite[rows] = s
+        delta = self.delta[index]
+        pdf = np.where(delta, pmf, pmf * pdf_dir)
+        valid = (pdf > 0) & np.isfinite(pdf) & (avg(Le) > 0)
+        return LightSample(wi=wi, Le=Le, pdf=np.where(valid, pdf, 0.0), delta=delta, target=target,
+                           finite=finite, valid=valid)
+
+    # ---- emission found by rays (BSDF sampling or camera rays) -----------------------------
+    def pdf_triangle_hit(self, prim: np.ndarray, p_prev: np.ndarray, t: np.ndarray, cos_light: np.ndarray):
+        """Selection pmf x solid-angle pdf with which NEE at p_prev would have sampled the hit
+        point on emissive triangle `prim` at distance t with |cos| at the light."""
+        index = self.light_of_prim[prim]
+        area = self.tri_area[index - self.n_analytic]
+        pdf = self.pmf(index) * np.divide(t * t, area * cos_light, out=np.zeros_like(t), where=(area * cos_light) > 0)
+        return np.where(np.isfinite(pdf), pdf, 0.0)
+
+    def emission_along(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, pdf_bsdf: np.ndarray,
+                       use_mis: np.ndarray, camera: np.ndarray) -> np.ndarray:
+        """Radiance (N,3) that rays o + t d, 0 < t < tmax, collect from analytic lights they pass
+        through (suns count only when tmax is inf), each weighted by the balance heuristic
+        pdf_bsdf / (pdf_bsdf + pdf_light) where use_mis, else 1. camera (N,) bool: camera rays
+        see only lights marked visible."""
+        total = np.zeros((len(o), 3))
+        lights = self.lights
+        for i in self.hittable.tolist() + np.flatnonzero(lights.kind == LIGHT_SUN).tolist():
+            kind = int(lights.kind[i])
+            if kind == LIGHT_SUN:
+                hit, Le, pdf_dir = shapes.sun_hit(lights, i, d)
+                hit &= ~np.isfinite(tmax)
+            else:
+                hit, Le, pdf_dir = shapes.hit_analytic(kind, lights, i, o, d, tmax)
+            if not lights.visible[i]:
+                hit &= ~camera
+            if not hit.any():
+                continue
+            pdf_light = self.pmf(np.full(len(o), i)) * pdf_dir
+            w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
+            total += np.where(hit[:, None], Le * w[:, None], 0.0)
+        return total

@@ -1,0 +1,180 @@
+"""Per-kind geometry of analytic lights: sampling from a shading point, ray hits, power.
+
+Conventions (Scene.Lights): spheres (point/spot of radius r) emit uniformly outward;
+rect and disk emit one-sided along the light's -z; the sun's light travels along -z from a
+cone of half-angle `sun_half_angle` around +z. Spot cones attenuate with Cycles'
+smoothstep((cos - cos_half) / smooth) of the direction from the light to the lit point
+(intern/cycles/kernel/light/spot.h). All solid-angle pdfs exclude the selection pmf.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import sampling
+from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, Lights
+
+
+def _dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+def _avg(c):
+    return np.asarray(c, np.float64).mean(axis=-1)
+
+
+def one_minus_cos(half_angle):
+    """1 - cos(x) without cancellation."""
+    return 2.0 * np.sin(0.5 * np.asarray(half_angle, np.float64)) ** 2
+
+
+def is_delta(lights: Lights) -> np.ndarray:
+    k = lights.kind
+    return (((k == LIGHT_POINT) | (k == LIGHT_SPOT)) & (lights.radius <= 0)) | ((k == LIGHT_SUN) & (lights.sun_half_angle <= 0))
+
+
+def area(lights: Lights) -> np.ndarray:
+    hx, hy = lights.size[:, 0], lights.size[:, 1]
+    return np.where(lights.kind == LIGHT_RECT, 4.0 * hx * hy, np.where(lights.kind == LIGHT_DISK, np.pi * hx * hy, 0.0))
+
+
+def analytic_power(lights: Lights, scene_radius: float) -> np.ndarray:
+    """Emitted power (W, mean over RGB) used only to choose lights (pbrt-v4 lights.cpp)."""
+    k, r, Le = lights.kind, lights.radius, _avg(lights.Le)
+    sphere = 4.0 * np.pi * np.where(r > 0, np.pi * r * r * Le, Le)  # 4 pi I, I = pi r^2 L
+    cos_end = lights.spot_cos_half
+    cos_start = np.minimum(cos_end + lights.spot_smooth, 1.0)
+    cone = ((1.0 - cos_start) + 0.5 * (cos_start - cos_end)) / 2.0  # fraction of the sphere lit
+    sun_E = np.where(lights.sun_half_angle > 0, Le * np.pi * np.sin(lights.sun_half_angle) ** 2, Le)
+    power = np.select(
+        [k == LIGHT_POINT, k == LIGHT_SPOT, k == LIGHT_SUN, (k == LIGHT_RECT) | (k == LIGHT_DISK)],
+        [sphere, sphere * cone, sun_E * np.pi * scene_radius**2, np.pi * area(lights) * Le], 0.0)
+    return power
+
+
+def spot_attenuation(lights: Lights, i, w_from_light):
+    """Cycles' spot cone factor for directions from the light (N,3); i (N,) or scalar."""
+    axis = -lights.frame[i, 2]
+    cos = _dot(w_from_light, np.broadcast_to(axis, w_from_light.shape))
+    cos_half = np.broadcast_to(lights.spot_cos_half[i], cos.shape)
+    smooth = np.broadcast_to(lights.spot_smooth[i], cos.shape)
+    x = np.divide(cos - cos_half, smooth, out=np.where(cos > cos_half, 1.0, 0.0), where=smooth > 0)
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def area_to_solid_angle(p, y, n_light, area_light, two_sided):
+    """Direction p->y and the solid-angle pdf of uniform area sampling (1/area)."""
+    v = y - p
+    d2 = _dot(v, v)
+    d = np.sqrt(d2)
+    wi = np.divide(v, d[:, None], out=np.zeros_like(v), where=d[:, None] > 0)
+    cos_l = -_dot(wi, n_light)
+    if two_sided:
+        cos_l = np.abs(cos_l)
+    denom = area_light * cos_l
+    pdf = np.divide(d2, denom, out=np.zeros_like(d2), where=denom > 0)
+    return wi, np.where(np.isfinite(pdf), pdf, 0.0), y
+
+
+def sample_analytic(kind, lights: Lights, idx, p, u):
+    """Sample lights idx (all of `kind`) from points p (N,3).
+    Returns wi, Le, pdf_dir (solid angle; 1 for delta lights), target, finite."""
+    n = len(p)
+    c = lights.position[idx]
+    frame = lights.frame[idx]
+    finite = np.ones(n, bool)
+    if kind in (LIGHT_POINT, LIGHT_SPOT):
+        r = lights.radius[idx]
+        v = c - p
+        d2 = _dot(v, v)
+        dist = np.sqrt(d2)
+        to_c = v / np.maximum(dist, 1e-300)[:, None]
+        sin2 = np.minimum(np.divide(r * r, d2, out=np.ones_like(d2), where=d2 > 0), 1.0)
+        local, omc_max = sampling.sample_sphere_cone(u, sin2)
+        t_axis, b_axis = sampling.frame_from_z(to_c)
+        wi = np.where((r > 0)[:, None], sampling.to_world(local, t_axis, b_axis, to_c), to_c)
+        cos_t = local[:, 2]
+        # Distance to the near side of the sphere along wi.
+        t_hit = dist * cos_t - np.sqrt(np.maximum(r * r - d2 * (1.0 - cos_t * cos_t), 0.0))
+        t_hit = np.where(r > 0, t_hit, dist)
+        target = p + wi * t_hit[:, None]
+        inside = d2 <= r * r
+        pdf_dir = np.where(r > 0, np.divide(1.0, 2.0 * np.pi * omc_max, out=np.zeros(n), where=omc_max > 0), 1.0)
+        pdf_dir = np.where(inside, 0.0, pdf_dir)
+        Le = lights.Le[idx] * np.where(r > 0, 1.0, 1.0 / np.maximum(d2, 1e-300))[:, None]
+        if kind == LIGHT_SPOT:
+            Le = Le * spot_attenuation(lights, idx, -wi)[:, None]
+        return wi, Le, pdf_dir, target, finite
+    if kind == LIGHT_SUN:
+        z = frame[:, 2]
+        half = lights.sun_half_angle[idx]
+        local, omc_max = sampling.sample_sphere_cone(u, np.sin(np.minimum(half, np.pi / 2)) ** 2)
+        t_axis, b_axis = sampling.frame_from_z(z)
+        wi = np.where((half > 0)[:, None], sampling.to_world(local, t_axis, b_axis, z), z)
+        pdf_dir = np.where(half > 0, np.divide(1.0, 2.0 * np.pi * omc_max, out=np.zeros(n), where=omc_max > 0), 1.0)
+        finite[:] = False
+        return wi, lights.Le[idx].copy(), pdf_dir, p + wi * 1e30, finite
+    # Rect and disk: uniform by area, one-sided along -z.
+    hx, hy = lights.size[idx, 0], lights.size[idx, 1]
+    if kind == LIGHT_RECT:
+        xy = sampling.sample_uniform_rectangle(u, hx, hy)
+    else:
+        xy = sampling.sample_concentric_disk(u) * np.stack([hx, hy], axis=1)
+    y = c + xy[:, :1] * frame[:, 0] + xy[:, 1:2] * frame[:, 1]
+    a = np.where(kind == LIGHT_RECT, 4.0 * hx * hy, np.pi * hx * hy)
+    wi, pdf_dir, target = area_to_solid_angle(p, y, -frame[:, 2], a, two_sided=False)
+    return wi, lights.Le[idx].copy(), pdf_dir, target, finite
+
+
+def hit_analytic(kind, lights: Lights, i: int, o, d, tmax):
+    """Rays o + t d (N) against analytic light i, 0 < t < tmax.
+    Returns hit (N,) bool, Le (N,3), pdf_dir (N,) solid-angle pdf of sampling that point."""
+    n = len(o)
+    c = lights.position[i]
+    frame = lights.frame[i]
+    if kind in (LIGHT_POINT, LIGHT_SPOT):
+        r = lights.radius[i]
+        f = o - c
+        b = _dot(f, d)
+        perp = f - b[:, None] * d
+        disc = r * r - _dot(perp, perp)
+        f2 = _dot(f, f)
+        outside = f2 > r * r
+        t = -b - np.sqrt(np.maximum(disc, 0.0))
+        hit = outside & (disc >= 0) & (t > 0) & (t < tmax)
+        sin2 = np.minimum(r * r / np.maximum(f2, 1e-300), 1.0)
+        omc = sin2 / (1.0 + np.sqrt(1.0 - sin2))
+        pdf_dir = np.divide(1.0, 2.0 * np.pi * omc, out=np.zeros(n), where=omc > 0)
+        Le = np.broadcast_to(lights.Le[i], (n, 3)).copy()
+        if kind == LIGHT_SPOT:
+            Le *= spot_attenuation(lights, i, -d)[:, None]  # from the light towards o
+        return hit, Le, pdf_dir
+    z = frame[2]
+    dz = d @ z
+    t = np.divide((c - o) @ z, dz, out=np.full(n, -1.0), where=dz != 0)
+    q = o + t[:, None] * d - c
+    x, y = q @ frame[0], q @ frame[1]
+    hx, hy = lights.size[i]
+    if kind == LIGHT_RECT:
+        inside = (np.abs(x) <= hx) & (np.abs(y) <= hy)
+        a = 4.0 * hx * hy
+    else:
+        inside = (x / max(hx, 1e-300)) ** 2 + (y / max(hy, 1e-300)) ** 2 <= 1.0
+        a = np.pi * hx * hy
+    # The emitting face looks along -z: a ray meets it travelling towards +z.
+    hit = inside & (dz > 0) & (t > 0) & (t < tmax)
+    pdf_dir = np.divide(t * t, a * dz, out=np.zeros(n), where=(dz > 0) & (a > 0))
+    return hit, np.broadcast_to(lights.Le[i], (n, 3)).copy(), pdf_dir
+
+
+def sun_hit(lights: Lights, i: int, d):
+    """Escaped directions d (N,3) inside sun i's cone: hit, Le, pdf_dir."""
+    half = lights.sun_half_angle[i]
+    n = len(d)
+    if half <= 0:
+        return np.zeros(n, bool), np.zeros((n, 3)), np.zeros(n)
+    omc = one_minus_cos(half)
+    # 1 - cos(angle to the axis) compared without cancellation via the chord length.
+    chord2 = _dot(d - lights.frame[i, 2], d - lights.frame[i, 2])
+    hit = 0.5 * chord2 <= omc
+    return hit, np.broadcast_to(lights.Le[i], (n, 3)).copy(), np.full(n, 1.0 / (2.0 * np.pi * omc))

@@ -1,0 +1,99 @@
+"""Scenes built directly as arrays (no Blender) for analytic tests."""
+import numpy as np
+
+from ember.engine.scene import (Camera, Lights, Materials, Mesh, Scene, Settings, World, MAT_DIFFUSE)
+
+
+def look_at(eye, target, up=(0, 0, 1)):
+    """world_from_camera for a camera at eye looking at target (camera looks down -z)."""
+    eye, target, up = (np.asarray(v, np.float64) for v in (eye, target, up))
+    back = eye - target
+    back /= np.linalg.norm(back)
+    right = np.cross(up, back)
+    if np.linalg.norm(right) < 1e-9:
+        right = np.cross((0, 1, 0), back)
+    right /= np.linalg.norm(right)
+    true_up = np.cross(back, right)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = right, true_up, back, eye
+    return m
+
+
+def perspective(eye, target, fov_deg=40.0, aspect=1.0, **kw):
+    h = np.tan(np.radians(fov_deg) / 2)
+    return Camera(world_from_camera=look_at(eye, target), window=np.array([-h * aspect, h * aspect, -h, h]), **kw)
+
+
+def quads_mesh(quads, material_ids):
+    """quads (Q,4,3) corners in order; flat normals from the winding."""
+    quads = np.asarray(quads, np.float64)
+    v = quads.reshape(-1, 3)
+    tris = []
+    for q in range(len(quads)):
+        b = 4 * q
+        tris += [[b, b + 1, b + 2], [b, b + 2, b + 3]]
+    tris = np.array(tris, np.int32)
+    p = v[tris]
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    normals = np.repeat(n[:, None, :], 3, axis=1)
+    mat = np.repeat(np.asarray(material_ids, np.int32), 2)
+    return Mesh(v.astype(np.float32), tris, normals.astype(np.float32), mat)
+
+
+def box_quads(lo, hi):
+    """Six faces of an axis-aligned box, normals pointing outward."""
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    return np.array([
+        [[x0, y0, z0], [x0, y1, z0], [x1, y1, z0], [x1, y0, z0]],  # bottom (-z)
+        [[x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]],  # top (+z)
+        [[x0, y0, z0], [x1, y0, z0], [x1, y0, z1], [x0, y0, z1]],  # -y
+        [[x0, y1, z0], [x0, y1, z1], [x1, y1, z1], [x1, y1, z0]],  # +y
+        [[x0, y0, z0], [x0, y0, z1], [x0, y1, z1], [x0, y1, z0]],  # -x
+        [[x1, y0, z0], [x1, y1, z0], [x1, y1, z1], [x1, y0, z1]],  # +x
+    ])
+
+
+def uv_sphere(center, radius, n_theta=24, n_phi=48):
+    """A closed triangulated sphere (outward winding) with smooth corner normals."""
+    c = np.asarray(center, np.float64)
+    th = np.linspace(0, np.pi, n_theta + 1)
+    ph = np.linspace(0, 2 * np.pi, n_phi + 1)
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    dirs = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1)
+    verts = (c + radius * dirs).reshape(-1, 3)
+    ndir = dirs.reshape(-1, 3)
+    tris = []
+    w = n_phi + 1
+    for i in range(n_theta):
+        for j in range(n_phi):
+            a, b, cc, d = i * w + j, i * w + j + 1, (i + 1) * w + j + 1, (i + 1) * w + j
+            if i != 0:
+                tris.append([a, d, b])
+            if i != n_theta - 1:
+                tris.append([b, d, cc])
+    tris = np.array(tris, np.int32)
+    return verts.astype(np.float32), tris, ndir[tris].astype(np.float32)
+
+
+def settings(**kw):
+    base = dict(width=16, height=16, samples=8, seed=1, filter="BOX", filter_width=1.0, batch_size=4096)
+    base.update(kw)
+    return Settings(**base)
+
+
+def furnace_box(albedo=0.5, Le=1.0, **kw):
+    """Closed box, every face diffuse `albedo` and emitting Le: radiance Le / (1 - albedo) everywhere."""
+    mesh = quads_mesh(box_quads((-1, -1, -1), (1, 1, 1)), [0] * 6)
+    mats = Materials.make([dict(kind=MAT_DIFFUSE, base_color=(albedo,) * 3, emission=(Le,) * 3)])
+    return Scene(mesh, mats, Lights.make([]), World(), perspective((0, -0.5, 0.2), (0, 1, 0), 70), settings(**kw))
+
+
+def sphere_with_point_light(albedo=0.5, intensity=np.pi, radius=0.0, **kw):
+    """pbrt-v4's analytic test: inside a unit sphere (albedo 0.5) a point light I = pi gives L = 1."""
+    v, t, n = uv_sphere((0, 0, 0), 1.0, 48, 96)
+    mesh = Mesh(v, t, n, np.zeros(len(t), np.int32))
+    mats = Materials.make([dict(kind=MAT_DIFFUSE, base_color=(albedo,) * 3)])
+    Le = intensity if radius == 0 else intensity / (np.pi * radius**2)
+    lights = Lights.make([dict(kind=0, position=(0, 0, 0), radius=radius, Le=(Le,) * 3)])
+    return Scene(mesh, mats, lights, World(), perspective((0, 0.3, 0), (0, 1, 0), 50), settings(**kw))

@@ -1,0 +1,95 @@
+"""Analytic scenes with known radiance (design.md test layer 3), rendered without Blender."""
+import numpy as np
+import pytest
+from scipy import stats as st
+
+from ember.engine.scene import LIGHT_RECT, MAT_EMISSION_ONLY, Lights, Materials, World
+from ember.engine.session import RenderSession
+
+from core_scenes import furnace_box, perspective, quads_mesh, settings, sphere_with_point_light
+
+ALPHA = 0.01
+
+
+def render(scene, **kw):
+    session = RenderSession(scene)
+    stats = session.run(**kw)
+    return session.film.mean(), session.film.variance_of_mean(), stats
+
+
+def assert_pixels_match(mean, var, expected, alpha=ALPHA):
+    """Per-pixel two-sided z-test against an exact value, Sidak-corrected over pixels x channels."""
+    z = (mean - expected) / np.sqrt(np.maximum(var, 1e-12))
+    crit = st.norm.ppf(1 - (1 - (1 - alpha) ** (1 / z.size)) / 2)
+    assert np.abs(z).max() < crit, f"max |z| = {np.abs(z).max():.2f} >= {crit:.2f}"
+
+
+@pytest.mark.parametrize("albedo", [0.3, 0.8])
+def test_furnace_box_radiance_is_Le_over_one_minus_albedo(albedo):
+    mean, var, stats = render(furnace_box(albedo=albedo, Le=1.0, samples=64))
+    assert stats.nonfinite == 0
+    assert_pixels_match(mean, var, 1.0 / (1.0 - albedo))
+    # The image mean, with its own standard error, is within 4 sigma of the exact value.
+    se = np.sqrt(var.sum()) / var.size
+    assert abs(mean.mean() - 1.0 / (1.0 - albedo)) < 4 * se
+
+
+def test_black_furnace_is_exactly_the_emission():
+    mean, var, _ = render(furnace_box(albedo=0.0, Le=0.7, samples=4))
+    assert np.all(mean == 0.7)
+
+
+@pytest.mark.parametrize("radius", [0.0, 0.05, 0.3])
+def test_sphere_enclosure_with_central_light_is_one(radius):
+    """pbrt-v4 integrators_test: unit sphere, albedo 0.5, light of intensity pi at the centre -> 1.
+    The sphere is tessellated (96x48), which shifts the exact answer by < 0.3 %."""
+    mean, var, stats = render(sphere_with_point_light(radius=radius, samples=64, width=12, height=12))
+    se = np.sqrt(var.sum()) / var.size
+    assert stats.nonfinite == 0
+    assert abs(mean.mean() - 1.0) < 4 * se + 0.003
+
+
+def _emitter_wall(kind):
+    """A camera looking straight at an emitter that fills its view."""
+    quad = [[[-5, 2, -5], [-5, 2, 5], [5, 2, 5], [5, 2, -5]]]  # faces -y, towards the camera
+    Le = np.array([2.0, 0.5, 0.25])
+    cam = perspective((0, 0, 0), (0, 1, 0), 40)
+    if kind == "mesh":
+        mesh = quads_mesh(quad, [0])
+        mats = Materials.make([dict(kind=MAT_EMISSION_ONLY, base_color=(0, 0, 0), emission=Le)])
+        lights = Lights.make([])
+    else:
+        from ember.engine.scene import Mesh
+        mesh, mats = Mesh.empty(), Materials.make([])
+        frame = np.array([[1, 0, 0], [0, 0, 1], [0, 1, 0]], float)  # -z of the light faces -y... emits along -z
+        frame[2] = [0, 1, 0]  # z axis +y: emits towards -y, at the camera
+        lights = Lights.make([dict(kind=LIGHT_RECT, position=(0, 2, 0), frame=frame, size=(5, 5), Le=Le)])
+    from ember.engine.scene import Scene
+    return Scene(mesh, mats, lights, World(), cam, settings(samples=4, filter="BLACKMAN_HARRIS", filter_width=1.5)), Le
+
+
+@pytest.mark.parametrize("kind", ["mesh", "area_light"])
+def test_directly_visible_emitter_returns_exactly_its_radiance(kind):
+    scene, Le = _emitter_wall(kind)
+    mean, _, _ = render(scene)
+    assert np.allclose(mean, Le, rtol=0, atol=1e-12)
+
+
+def test_same_seed_same_image_other_seed_other_image():
+    a, _, _ = render(furnace_box(albedo=0.5, samples=3, seed=5))
+    b, _, _ = render(furnace_box(albedo=0.5, samples=3, seed=5))
+    c, _, _ = render(furnace_box(albedo=0.5, samples=3, seed=6))
+    assert np.array_equal(a, b) and not np.array_equal(a, c)
+
+
+def test_stop_request_ends_the_render_early():
+    calls = []
+    session = RenderSession(furnace_box(samples=500, batch_size=64))
+    stats = session.run(should_stop=lambda: calls.append(1) or len(calls) > 3)
+    assert stats.cancelled and stats.samples < 500
+
+
+def test_time_limit_stops_before_all_samples():
+    session = RenderSession(furnace_box(samples=100000, batch_size=64, time_limit=1e-6))
+    stats = session.run()
+    assert not stats.cancelled and stats.samples < 100000
