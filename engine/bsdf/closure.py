@@ -8,13 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..vec import dot, max3
+
 from .. import sampling
 from ..scene import MAT_DIFFUSE, Materials
 from . import diffuse
 
-
-def _dot(a, b):
-    return np.einsum("ij,ij->i", a, b)
 
 
 class Closure:
@@ -36,11 +35,11 @@ class Closure:
         """f (K,3) and solid-angle pdf (K,) at the points `rows` (K,) for directions wi (K,3)."""
         f = np.zeros((len(rows), 3))
         pdf = np.zeros(len(rows))
-        ok = _dot(wi, self.ng[rows]) > 0
+        ok = dot(wi, self.ng[rows]) > 0
         sel = np.flatnonzero(self.kind[rows] == MAT_DIFFUSE)
         if len(sel):
             r = rows[sel]
-            cos_i = np.where(ok[sel], _dot(wi[sel], self.ns[r]), 0.0)
+            cos_i = np.where(ok[sel], dot(wi[sel], self.ns[r]), 0.0)
             f[sel] = diffuse.eval(self.albedo[r], cos_i)
             pdf[sel] = diffuse.pdf(cos_i)
         return f, pdf
@@ -54,11 +53,11 @@ class Closure:
         if len(rows):
             local = diffuse.sample(u[rows])
             wi[rows] = sampling.to_world(local, self.t[rows], self.b[rows], self.ns[rows])
-            cos_i = np.where(_dot(wi[rows], self.ng[rows]) > 0, local[:, 2], 0.0)
+            cos_i = np.where(dot(wi[rows], self.ng[rows]) > 0, local[:, 2], 0.0)
             f[rows] = diffuse.eval(self.albedo[rows], cos_i)
             pdf[rows] = diffuse.pdf(cos_i)
         valid = pdf > 0
         return wi, f, pdf, valid
 
     def cos_i(self, wi: np.ndarray) -> np.ndarray:
-        return np.abs(_dot(wi, self.ns))
+        return np.abs(dot(wi, self.ns))

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..vec import dot, length, max3
+
 from .. import camera as camera_mod
 from ..accel import Accel, offset_origin
 from ..bsdf.closure import Closure
@@ -29,9 +31,6 @@ from ..scene import Scene
 # Random dimensions: 0-1 pixel filter, then _DIMS per bounce.
 _DIMS = 8
 
-
-def _dot(a, b):
-    return np.einsum("ij,ij->i", a, b)
 
 
 class PathTracer:
@@ -88,7 +87,7 @@ class PathTracer:
             if emits.any():
                 r = np.flatnonzero(emits)
                 Le = self.materials.emission[mat[r]]
-                cos_l = np.abs(_dot(d[r], ng[r]))
+                cos_l = np.abs(dot(d[r], ng[r]))
                 pdf_light = self.lights.pdf_triangle_hit(prim[r], o_prev[r], hit_t[r], cos_l)
                 w = np.where(no_mis[r], 1.0, pdf_prev[r] / np.maximum(pdf_prev[r] + pdf_light, 1e-300))
                 L[idx[r]] += beta[r] * Le * w[:, None]
@@ -96,29 +95,30 @@ class PathTracer:
                 break
             # Shading frame, flipped to the side the ray came from (two-sided, like Cycles).
             wo = -d
-            side = np.where(_dot(ng, wo) >= 0, 1.0, -1.0)[:, None]
+            side = np.where(dot(ng, wo) >= 0, 1.0, -1.0)[:, None]
             ng_f = ng * side
-            ns = np.einsum("ij,ijk->ik", bary, mesh.normals[prim].astype(np.float64))
-            ns_len = np.linalg.norm(ns, axis=1, keepdims=True)
+            cn = mesh.normals[prim]
+            ns = bary[:, 0:1] * cn[:, 0] + bary[:, 1:2] * cn[:, 1] + bary[:, 2:3] * cn[:, 2]
+            ns_len = length(ns)[:, None]
             ns = np.where(ns_len > 1e-12, ns / np.maximum(ns_len, 1e-300), ng) * side
-            ns = np.where((_dot(ns, ng_f) > 0)[:, None], ns, ng_f)
+            ns = np.where((dot(ns, ng_f) > 0)[:, None], ns, ng_f)
             bsdf = Closure(self.materials, mat, ns, ng_f, wo)
             q = np.ones(len(idx))
             if depth >= self.rr_depth:
-                q = np.minimum(1.0, bsdf.reflectance.max(axis=1))
+                q = np.minimum(1.0, max3(bsdf.reflectance))
             o_next = offset_origin(hit_p, ng_f)
             m = len(idx)
             # Next-event estimation.
-            active = np.flatnonzero(bsdf.reflectance.max(axis=1) > 0)
+            active = np.flatnonzero(max3(bsdf.reflectance) > 0)
             if len(active) and not self.lights.empty:
                 ls = self.lights.sample(hit_p[active], sampler.get(base, m)[active],
                                         sampler.get(base + 1, (m, 2))[active])
                 f, pdf_b = bsdf.eval(ls.wi, active)
-                cos_i = np.abs(_dot(ls.wi, ns[active]))
+                cos_i = np.abs(dot(ls.wi, ns[active]))
                 w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + q[active] * pdf_b, 1e-300))
                 contrib = beta[active] * f * ls.Le * np.divide(cos_i * w, ls.pdf, out=np.zeros(len(active)),
                                                                   where=ls.valid)[:, None]
-                test = np.flatnonzero(contrib.max(axis=1) > 0)
+                test = np.flatnonzero(max3(contrib) > 0)
                 if len(test):
                     rows = active[test]
                     blocked = self.accel.occluded(o_next[rows], target=ls.target[test])
@@ -126,9 +126,9 @@ class PathTracer:
             # BSDF sampling continues the path; Russian roulette with survival q.
             wi, f, pdf_b, valid = bsdf.sample(sampler.get(base + 2, (m, 2)))
             survive = valid & (sampler.get(base + 3, m) < q)
-            cos_i = np.abs(_dot(wi, ns))
+            cos_i = np.abs(dot(wi, ns))
             beta = beta * f * np.divide(cos_i, pdf_b * q, out=np.zeros(m), where=survive)[:, None]
-            survive &= beta.max(axis=1) > 0
+            survive &= max3(beta) > 0
             idx, beta, d = idx[survive], beta[survive], wi[survive]
             pdf_prev = (q * pdf_b)[survive]
             no_mis = np.zeros(len(idx), bool)

@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..vec import dot, max3
+
 from .. import sampling
 from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, Lights
 
-
-def _dot(a, b):
-    return np.einsum("ij,ij->i", a, b)
 
 
 def _avg(c):
@@ -54,7 +53,7 @@ def analytic_power(lights: Lights, scene_radius: float) -> np.ndarray:
 def spot_attenuation(lights: Lights, i, w_from_light):
     """Cycles' spot cone factor for directions from the light (N,3); i (N,) or scalar."""
     axis = -lights.frame[i, 2]
-    cos = _dot(w_from_light, np.broadcast_to(axis, w_from_light.shape))
+    cos = dot(w_from_light, np.broadcast_to(axis, w_from_light.shape))
     cos_half = np.broadcast_to(lights.spot_cos_half[i], cos.shape)
     smooth = np.broadcast_to(lights.spot_smooth[i], cos.shape)
     x = np.divide(cos - cos_half, smooth, out=np.where(cos > cos_half, 1.0, 0.0), where=smooth > 0)
@@ -65,10 +64,10 @@ def spot_attenuation(lights: Lights, i, w_from_light):
 def area_to_solid_angle(p, y, n_light, area_light, two_sided):
     """Direction p->y and the solid-angle pdf of uniform area sampling (1/area)."""
     v = y - p
-    d2 = _dot(v, v)
+    d2 = dot(v, v)
     d = np.sqrt(d2)
     wi = np.divide(v, d[:, None], out=np.zeros_like(v), where=d[:, None] > 0)
-    cos_l = -_dot(wi, n_light)
+    cos_l = -dot(wi, n_light)
     if two_sided:
         cos_l = np.abs(cos_l)
     denom = area_light * cos_l
@@ -86,7 +85,7 @@ def sample_analytic(kind, lights: Lights, idx, p, u):
     if kind in (LIGHT_POINT, LIGHT_SPOT):
         r = lights.radius[idx]
         v = c - p
-        d2 = _dot(v, v)
+        d2 = dot(v, v)
         dist = np.sqrt(d2)
         to_c = v / np.maximum(dist, 1e-300)[:, None]
         sin2 = np.minimum(np.divide(r * r, d2, out=np.ones_like(d2), where=d2 > 0), 1.0)
@@ -135,10 +134,10 @@ def hit_analytic(kind, lights: Lights, i: int, o, d, tmax):
     if kind in (LIGHT_POINT, LIGHT_SPOT):
         r = lights.radius[i]
         f = o - c
-        b = _dot(f, d)
+        b = dot(f, d)
         perp = f - b[:, None] * d
-        disc = r * r - _dot(perp, perp)
-        f2 = _dot(f, f)
+        disc = r * r - dot(perp, perp)
+        f2 = dot(f, f)
         outside = f2 > r * r
         t = -b - np.sqrt(np.maximum(disc, 0.0))
         hit = outside & (disc >= 0) & (t > 0) & (t < tmax)
@@ -175,6 +174,6 @@ def sun_hit(lights: Lights, i: int, d):
         return np.zeros(n, bool), np.zeros((n, 3)), np.zeros(n)
     omc = one_minus_cos(half)
     # 1 - cos(angle to the axis) compared without cancellation via the chord length.
-    chord2 = _dot(d - lights.frame[i, 2], d - lights.frame[i, 2])
+    chord2 = dot(d - lights.frame[i, 2], d - lights.frame[i, 2])
     hit = 0.5 * chord2 <= omc
     return hit, np.broadcast_to(lights.Le[i], (n, 3)).copy(), np.full(n, 1.0 / (2.0 * np.pi * omc))
