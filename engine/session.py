@@ -109,87 +109,94 @@ class RenderSession:
         ys, xs = np.mgrid[y0:y1, x0:x1]
         self.px, self.py = xs.ravel(), ys.ravel()
         self.pixel = self.py * s.width + self.px
-        n = len(self.px)
-        self.batches = [(i, min(i + s.batch_size, n)) for i in range(0, n, s.batch_size)]
+        # Work = samples x pixels in pass-major order, cut into fixed-size batches (a batch
+        # may span several passes of a small image, so per-bounce overhead stays amortised).
+        self.n_pixels = len(self.px)
+        self.total_paths = s.samples * self.n_pixels
+        self.n_batches = -(-self.total_paths // s.batch_size)
         self.threads = s.threads or os.cpu_count() or 1
         self.build_seconds = time.perf_counter() - t0
 
-    def _trace(self, pass_index: int, batch_index: int, stop: threading.Event):
-        a, b = self.batches[batch_index]
-        sampler = Sampler(self.scene.settings.seed, pass_index, batch_index)
-        return self.integrator.render(sampler, self.px[a:b], self.py[a:b], stop)
+    def _trace(self, batch_index: int, stop: threading.Event):
+        s = self.scene.settings
+        k = np.arange(batch_index * s.batch_size, min((batch_index + 1) * s.batch_size, self.total_paths))
+        j = k % self.n_pixels
+        return self.integrator.render(Sampler(s.seed, 0, batch_index), self.px[j], self.py[j], stop)
+
+    def _add(self, batch_index: int, L: np.ndarray) -> None:
+        """Add a batch to the film, one pass segment at a time (pixels unique per segment)."""
+        s = self.scene.settings
+        start = batch_index * s.batch_size
+        end = start + len(L)
+        cut = start
+        while cut < end:
+            seg_end = min(end, (cut // self.n_pixels + 1) * self.n_pixels)
+            j = np.arange(cut, seg_end) % self.n_pixels
+            self.film.add(self.pixel[j], L[cut - start:seg_end - start])
+            cut = seg_end
 
     def run(self, on_update=None, should_stop=None) -> RenderStats:
         s = self.scene.settings
-        n_batches = len(self.batches)
-        jobs = ((p, b) for p in range(s.samples) for b in range(n_batches))
-        total_jobs = s.samples * n_batches
         stop = threading.Event()
-        pending = {}  # future -> job sequence number
-        finished = {}  # sequence number -> result, waiting for its turn
-        next_add = 0
-        submitted = 0
-        samples_done = 0
+        pending = {}  # future -> batch index
+        finished = {}  # batch index -> radiance, waiting for its turn (film order is fixed)
+        next_add = submitted = 0
+        paths_added = 0
         cancelled = False
         t0 = time.perf_counter()
         last_update = t0
         rays0 = self.accel.rays
         noise = None
 
+        def samples_done():
+            return paths_added // self.n_pixels
+
         def report(pass_completed):
             nonlocal last_update
-            if on_update is None:
-                return
-            elapsed = time.perf_counter() - t0
-            rays = self.accel.rays - rays0
-            on_update(Progress(samples_done, s.samples, next_add / total_jobs, elapsed, rays,
-                               rays / max(elapsed, 1e-9), pass_completed, noise, self.film))
+            if on_update is not None:
+                elapsed = time.perf_counter() - t0
+                rays = self.accel.rays - rays0
+                on_update(Progress(samples_done(), s.samples, paths_added / self.total_paths, elapsed, rays,
+                                   rays / max(elapsed, 1e-9), pass_completed, noise, self.film))
             last_update = time.perf_counter()
 
         with ThreadPoolExecutor(max_workers=self.threads, thread_name_prefix="ember") as pool:
-            while next_add < total_jobs:
-                out_of_time = s.time_limit > 0 and time.perf_counter() - t0 >= s.time_limit
-                if should_stop is not None and should_stop():
+            while next_add < self.n_batches:
+                if should_stop is not None and not cancelled and should_stop():
                     cancelled = True
                     stop.set()
+                out_of_time = s.time_limit > 0 and time.perf_counter() - t0 >= s.time_limit
                 if not stop.is_set() and not out_of_time:
-                    while len(pending) < 2 * self.threads and submitted < total_jobs:
-                        job = next(jobs)
-                        pending[pool.submit(self._trace, *job, stop)] = submitted
+                    while len(pending) < 2 * self.threads and submitted < self.n_batches:
+                        pending[pool.submit(self._trace, submitted, stop)] = submitted
                         submitted += 1
                 if not pending:
                     break
                 done, _ = wait(pending, timeout=UPDATE_INTERVAL, return_when=FIRST_COMPLETED)
                 for fut in done:
-                    seq = pending.pop(fut)
+                    b = pending.pop(fut)
                     try:
-                        finished[seq] = fut.result()
+                        finished[b] = fut.result()
                     except Cancelled:
-                        finished[seq] = None
-                pass_completed = False
+                        finished[b] = None
+                before = samples_done()
                 while next_add in finished:
                     L = finished.pop(next_add)
                     if L is None:  # cancelled mid-batch: nothing after it is added either
-                        next_add = total_jobs
+                        next_add = self.n_batches
                         break
-                    a, b = self.batches[next_add % n_batches]
-                    self.film.add(self.pixel[a:b], L)
+                    self._add(next_add, L)
+                    paths_added += len(L)
                     next_add += 1
-                    if next_add % n_batches == 0:
-                        samples_done += 1
-                        pass_completed = True
-                if stop.is_set() and not pending:
-                    break
+                pass_completed = samples_done() > before
                 if pass_completed:
                     noise = self.film.noise()
                 if pass_completed or time.perf_counter() - last_update >= UPDATE_INTERVAL:
                     report(pass_completed)
-                if (stop.is_set() or out_of_time) and not pending:
-                    break
         elapsed = time.perf_counter() - t0
         rays = self.accel.rays - rays0
-        if noise is None and samples_done:
+        if samples_done() and noise is None:
             noise = self.film.noise()
-        return RenderStats(samples=samples_done, elapsed=elapsed, rays=rays, rays_per_second=rays / max(elapsed, 1e-9),
+        return RenderStats(samples=samples_done(), elapsed=elapsed, rays=rays, rays_per_second=rays / max(elapsed, 1e-9),
                            embree_seconds=self.accel.embree_seconds, build_seconds=self.build_seconds,
                            cancelled=cancelled, noise=noise, nonfinite=self.film.nonfinite)
