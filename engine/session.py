@@ -121,7 +121,8 @@ class RenderSession:
         s = self.scene.settings
         k = np.arange(batch_index * s.batch_size, min((batch_index + 1) * s.batch_size, self.total_paths))
         j = k % self.n_pixels
-        return self.integrator.render(Sampler(s.seed, 0, batch_index), self.px[j], self.py[j], stop)
+        sampler = Sampler(s.seed, self.pixel[j], k // self.n_pixels)
+        return self.integrator.render(sampler, self.px[j], self.py[j], stop)
 
     def _add(self, batch_index: int, L: np.ndarray) -> None:
         """Add a batch to the film, one pass segment at a time (pixels unique per segment)."""

@@ -28,7 +28,7 @@ from ..errors import Cancelled
 from ..lights.light_set import LightSet
 from ..scene import Scene
 
-# Random dimensions: 0-1 pixel filter, then _DIMS per bounce.
+# Random dimensions: 0 pixel filter, then _DIMS per bounce.
 _DIMS = 8
 
 
@@ -48,7 +48,7 @@ class PathTracer:
     def render(self, sampler, px: np.ndarray, py: np.ndarray, stop=None) -> np.ndarray:
         """Radiance estimates (N,3), one path per pixel (px, py). Raises Cancelled if stop is set."""
         s = self.scene
-        o64, d, tmax = camera_mod.generate_rays(s.camera, s.settings, px, py, sampler.get(0, (len(px), 2)))
+        o64, d, tmax = camera_mod.generate_rays(s.camera, s.settings, px, py, sampler.get(0, None, 2))
         n = len(px)
         L = np.zeros((n, 3))
         idx = np.arange(n)  # which pixel sample each live path belongs to
@@ -63,7 +63,7 @@ class PathTracer:
                 raise Cancelled()
             if len(idx) == 0:
                 break
-            base = 2 + _DIMS * depth
+            base = 1 + _DIMS * depth
             hit = self.accel.intersect(o32, d, tmax, skip)
             camera_ray = np.full(len(idx), depth == 0)
             # Light objects the ray passes on its way (they do not stop it).
@@ -111,8 +111,8 @@ class PathTracer:
             # Next-event estimation.
             active = np.flatnonzero(max3(bsdf.reflectance) > 0)
             if len(active) and not self.lights.empty:
-                ls = self.lights.sample(hit_p[active], sampler.get(base, m)[active],
-                                        sampler.get(base + 1, (m, 2))[active])
+                ls = self.lights.sample(hit_p[active], sampler.get(base, idx[active]),
+                                        sampler.get(base + 1, idx[active], 2))
                 f, pdf_b = bsdf.eval(ls.wi, active)
                 cos_i = np.abs(dot(ls.wi, ns[active]))
                 w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + q[active] * pdf_b, 1e-300))
@@ -124,8 +124,8 @@ class PathTracer:
                     blocked = self.accel.occluded(o_next[rows], target=ls.target[test])
                     L[idx[rows]] += np.where(blocked[:, None], 0.0, contrib[test])
             # BSDF sampling continues the path; Russian roulette with survival q.
-            wi, f, pdf_b, valid = bsdf.sample(sampler.get(base + 2, (m, 2)))
-            survive = valid & (sampler.get(base + 3, m) < q)
+            wi, f, pdf_b, valid = bsdf.sample(sampler.get(base + 2, idx, 2))
+            survive = valid & (sampler.get(base + 3, idx) < q)
             cos_i = np.abs(dot(wi, ns))
             beta = beta * f * np.divide(cos_i, pdf_b * q, out=np.zeros(m), where=survive)[:, None]
             survive &= max3(beta) > 0

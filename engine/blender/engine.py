@@ -1,0 +1,22 @@
+"""The RenderEngine Blender talks to. Thin: every callback is one line into a driver module
+(final.py for F12 / bpy.ops.render.render). No viewport renderer yet: with
+bl_use_eevee_viewport, Material Preview uses EEVEE."""
+import bpy
+
+from . import final
+
+
+class EmberRenderEngine(bpy.types.RenderEngine):
+    bl_idname = "EMBER"
+    bl_label = "Ember"
+    bl_use_shading_nodes_custom = False  # keep Cycles/EEVEE shader nodes (we read Principled BSDF)
+    bl_use_postprocess = True  # compositor and sequencer run on our result
+    bl_use_eevee_viewport = True  # Material Preview through EEVEE
+    bl_use_preview = False  # no material/light/world preview renders
+
+    # Blender 4.4+: the constructor must take and forward *args/**kwargs.
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+
+    def render(self, depsgraph):
+        final.render(self, depsgraph)

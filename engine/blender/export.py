@@ -1,0 +1,116 @@
+"""depsgraph -> Scene: the one entry point of the Blender export.
+
+    scene, warnings = export_scene(depsgraph, overrides=None, test_break=None, progress=None)
+
+Walks depsgraph.object_instances once (the depsgraph has already applied modifiers,
+instancing and the render/viewport visibility of its mode), hands MESH instances to
+export_mesh and LIGHT instances to export_light, and reads camera, world and settings.
+Raises EmberError for scenes Ember cannot render and Cancelled when test_break() is True.
+"""
+from __future__ import annotations
+
+from ..errors import Cancelled, EmberError
+from ..scene import Lights, Scene
+from .export_camera import export_camera
+from .export_light import export_light
+from .export_material import MaterialTable
+from .export_mesh import MeshCollector
+from .export_settings import export_settings
+from .export_world import export_world
+
+CHECK_EVERY = 1000  # instances between test_break() polls
+REPORT_EVERY = 5000  # instances between progress reports
+_RAY_FLAGS = ("visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
+              "visible_shadow")
+_UNRENDERED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "point clouds", "VOLUME": "volumes",
+                     "GREASEPENCIL": "grease pencil", "GPENCIL": "grease pencil"}
+
+
+class Warnings(list):
+    """User-facing warnings, each message once, in order of first occurrence.
+    `group(what, name)` collects names for one summary line per feature (`finish()`)."""
+
+    def __init__(self):
+        super().__init__()
+        self._groups: dict[str, list] = {}
+
+    def __call__(self, message: str) -> None:
+        if message not in self:
+            self.append(message)
+
+    def group(self, what: str, name: str) -> None:
+        self._groups.setdefault(what, []).append(name)
+
+    def finish(self) -> list[str]:
+        for what, names in self._groups.items():
+            self(f"{what}: {_names(names)}.")
+        self._groups.clear()
+        return list(self)
+
+
+def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
+                 progress=None) -> tuple[Scene, list[str]]:
+    warn = Warnings()
+    report = progress or (lambda message: None)
+
+    def check():
+        if test_break is not None and test_break():
+            raise Cancelled("Export cancelled.")
+
+    scene = depsgraph.scene_eval
+    report("Export: settings")
+    # Settings from the original scene: add-on PropertyGroups (scene.ember, scene.cycles)
+    # do not tag the depsgraph when edited, so the evaluated copy can be stale.
+    settings = export_settings(depsgraph.scene, overrides, warn)
+    camera = export_camera(depsgraph, scene, settings, warn)
+    check()
+
+    materials = MaterialTable(warn)
+    meshes = MeshCollector(materials, warn, getattr(depsgraph.view_layer_eval, "material_override", None))
+    light_rows = []
+    visibility = {}  # original object pointer -> render it?
+    report("Export: objects")
+    for i, inst in enumerate(depsgraph.object_instances):
+        if i % CHECK_EVERY == 0:
+            check()
+            if i and i % REPORT_EVERY == 0:
+                report(f"Export: objects {i} ({meshes.n_meshes} meshes)")
+        if not inst.show_self:
+            continue
+        ob = inst.object
+        kind = ob.type
+        if kind == "MESH":
+            key = ob.original.as_pointer()
+            visible = visibility.get(key)
+            if visible is None:
+                flags = [bool(getattr(ob, f, True)) for f in _RAY_FLAGS]
+                visible = visibility[key] = any(flags)
+                if visible and not all(flags):
+                    warn.group("Per-ray-type object visibility is not supported and is ignored", ob.name)
+            if visible:
+                meshes.add(ob, inst.matrix_world.copy())
+        elif kind == "LIGHT":
+            row = export_light(ob, inst.matrix_world.copy(), warn)
+            if row is not None:
+                light_rows.append(row)
+        elif kind in _UNRENDERED_TYPES:
+            warn.group(f"Ember does not render {_UNRENDERED_TYPES[kind]} yet; skipped", ob.name)
+    check()
+
+    mesh = meshes.build(check, report)
+    check()
+    lights = Lights.make(light_rows)
+    if mesh.n_triangles == 0 and len(lights) == 0:
+        raise EmberError("Nothing to render: the scene has no visible geometry and no lights.")
+    report("Export: world")
+    world = export_world(depsgraph, scene, warn)
+    report(f"Export: done ({mesh.n_triangles} triangles, {len(lights)} lights, "
+           f"{len(materials)} materials)")
+    return Scene(mesh=mesh, materials=materials.materials(), lights=lights, world=world,
+                 camera=camera, settings=settings), warn.finish()
+
+
+def _names(names, limit=5) -> str:
+    unique = list(dict.fromkeys(names))
+    text = ", ".join(f"'{n}'" for n in unique[:limit])
+    return text + (f" and {len(unique) - limit} more" if len(unique) > limit else "")

@@ -1,0 +1,95 @@
+"""Scene camera -> Camera (world_from_camera without scale, image window).
+
+The window follows Blender's BKE_camera_params_compute_viewplane (which Cycles'
+blender/camera.cpp reproduces): the sensor (perspective) or ortho_scale (orthographic)
+spans the fitted image dimension; AUTO fits the larger of width*pixel_aspect_x and
+height*pixel_aspect_y (horizontal on ties); the other dimension follows the image aspect
+including pixel aspect; shift moves the window by shift * (fitted extent).
+Tests check it against Object.calc_matrix_camera.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import EmberError
+from ..scene import Camera
+
+
+def camera_window(*, ortho: bool, lens: float, sensor_width: float, sensor_height: float,
+                  sensor_fit: str, ortho_scale: float, shift_x: float, shift_y: float,
+                  width: int, height: int, pixel_aspect_x: float = 1.0,
+                  pixel_aspect_y: float = 1.0) -> np.ndarray:
+    """(left, right, bottom, top): at z = -1 for perspective, in metres for orthographic."""
+    ycor = pixel_aspect_y / pixel_aspect_x
+    if sensor_fit == "AUTO":
+        horizontal = pixel_aspect_x * width >= pixel_aspect_y * height
+        sensor = sensor_width
+    elif sensor_fit == "HORIZONTAL":
+        horizontal, sensor = True, sensor_width
+    elif sensor_fit == "VERTICAL":
+        horizontal, sensor = False, sensor_height
+    else:
+        raise EmberError(f"Unknown camera sensor fit '{sensor_fit}'.")
+    extent = ortho_scale if ortho else sensor / lens  # of the fitted dimension
+    viewfac = width if horizontal else ycor * height  # fitted dimension in 'pixels'
+    pix = extent / viewfac
+    dx = shift_x * viewfac
+    dy = shift_y * viewfac
+    return np.array([(-0.5 * width + dx) * pix, (0.5 * width + dx) * pix,
+                     (-0.5 * ycor * height + dy) * pix, (0.5 * ycor * height + dy) * pix],
+                    np.float64)
+
+
+def world_from_camera_matrix(matrix_world) -> np.ndarray:
+    """4x4 float64 with the scale removed (unit axis columns), like Cycles'
+    transform_clear_scale."""
+    m = np.array(matrix_world, np.float64).reshape(4, 4)
+    norms = np.linalg.norm(m[:3, :3], axis=0)
+    if not np.all(norms > 0) or not np.all(np.isfinite(m)):
+        raise EmberError("The camera has a zero or invalid scale; reset its scale to 1.")
+    m[:3, :3] /= norms
+    return m
+
+
+def export_camera(depsgraph, scene, settings, warn) -> Camera:
+    """The scene camera (evaluated). Raises EmberError if missing or panoramic/custom."""
+    cam_ob = scene.camera
+    if cam_ob is None:
+        raise EmberError("The scene has no camera; add one and make it the active camera "
+                         "(Scene Properties > Camera).")
+    cam_ob = cam_ob.evaluated_get(depsgraph) if not cam_ob.is_evaluated else cam_ob
+    if cam_ob.type != "CAMERA":
+        raise EmberError(f"The scene camera '{cam_ob.name}' is not a camera object.")
+    cam = cam_ob.data
+    if cam.type == "PANO":
+        raise EmberError(f"Camera '{cam_ob.name}' is panoramic ({cam.panorama_type}); "
+                         "Ember supports perspective and orthographic cameras only.")
+    if cam.type not in ("PERSP", "ORTHO"):
+        raise EmberError(f"Camera '{cam_ob.name}' has type {cam.type}; Ember supports "
+                         "perspective and orthographic cameras only.")
+    ortho = cam.type == "ORTHO"
+    if not ortho and not cam.lens > 0:
+        raise EmberError(f"Camera '{cam_ob.name}' has a focal length of {cam.lens} mm; it must be positive.")
+    if ortho and not cam.ortho_scale > 0:
+        raise EmberError(f"Camera '{cam_ob.name}' has an orthographic scale of {cam.ortho_scale}; it must be positive.")
+
+    render = scene.render
+    window = camera_window(
+        ortho=ortho, lens=cam.lens, sensor_width=cam.sensor_width, sensor_height=cam.sensor_height,
+        sensor_fit=cam.sensor_fit, ortho_scale=cam.ortho_scale, shift_x=cam.shift_x,
+        shift_y=cam.shift_y, width=settings.width, height=settings.height,
+        pixel_aspect_x=render.pixel_aspect_x, pixel_aspect_y=render.pixel_aspect_y)
+
+    dof = getattr(cam, "dof", None)
+    if dof is not None and dof.use_dof:
+        warn(f"Camera '{cam_ob.name}': depth of field is not supported yet and is ignored.")
+    if render.use_motion_blur:
+        warn("Motion blur is not supported yet and is ignored.")
+
+    clip_start, clip_end = float(cam.clip_start), float(cam.clip_end)
+    if not (math.isfinite(clip_start) and math.isfinite(clip_end) and clip_end > clip_start):
+        raise EmberError(f"Camera '{cam_ob.name}' has invalid clipping ({clip_start}, {clip_end}).")
+    return Camera(world_from_camera=world_from_camera_matrix(cam_ob.matrix_world),
+                  window=window, ortho=ortho, clip_start=clip_start, clip_end=clip_end)

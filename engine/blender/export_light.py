@@ -1,0 +1,140 @@
+"""Light objects -> rows for Lights.make, in Cycles' units.
+
+Confirmed in blender/blender (5.x):
+- intern/cycles/blender/light.cpp (sync_light): strength = color [* temperature_color if
+  use_temperature] * energy * 2^exposure; normalize = light.normalize; point/spot size =
+  radius (shadow_soft_size, not scaled by the object); area size_u/size_v = size/size_y.
+- intern/cycles/scene/light.cpp: Light::area() = 4 pi r^2 for point/spot (4 when r = 0);
+  |axis_u| size_u * |axis_v| size_v (* pi/4 for disk/ellipse) for area lights, where the
+  axes are the object transform's x/y columns (object scale included); pi sin^2(angle/2)
+  for the sun (1 when angle = 0). invarea = normalize ? 1/area : 1.
+  Point/spot eval_fac = invarea / pi; area eval_fac = invarea / pi (kernel/light/area.h);
+  sun eval_fac = invarea (kernel/light/distant.h). Emitted value = strength * eval_fac:
+  radiance, or for delta lights intensity (point/spot r = 0: strength/(4 pi)) and
+  irradiance (sun angle = 0: strength).
+- kernel/light/spot.h: attenuation smoothstep((cos - cos(size/2)) / ((1 - cos(size/2)) * blend)),
+  power is not concentrated into the cone.
+Approximations: point/spot 'soft falloff' (Cycles' default, a disk facing the shading
+point) is modelled as a sphere of the same radius; area spread, per-ray-type visibility,
+shadow toggle, light node trees beyond one Emission node and non-uniformly scaled spot
+cones are not modelled (warned).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN
+
+
+def _unsupported(warn, what: str, name: str) -> None:
+    """One warning per feature listing the lights (export.Warnings.group), else per light."""
+    group = getattr(warn, "group", None)
+    if group is not None:
+        group(what, name)
+    else:
+        warn(f"{what}: '{name}'.")
+
+
+def light_strength(light, warn) -> np.ndarray:
+    """Cycles' strength (3,): colour x temperature colour x energy x 2^exposure x node emission."""
+    color = np.array(light.color[:3], np.float64)
+    if getattr(light, "use_temperature", False):
+        tc = getattr(light, "temperature_color", None)
+        if tc is not None:
+            color = color * np.array(tc[:3], np.float64)
+        else:  # pragma: no cover - older Blender
+            warn(f"Light '{light.name}': colour temperature is ignored.")
+    strength = color * float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
+    return strength * _node_emission(light, warn)
+
+
+def _node_emission(light, warn) -> np.ndarray:
+    """Multiplier from the light's shader nodes (Cycles uses them when a node tree exists)."""
+    tree = getattr(light, "node_tree", None)
+    if tree is None:
+        return np.ones(3)
+    from .export_material import find_output, follow_link  # local: shared node helpers
+    out = find_output(tree, "ShaderNodeOutputLight")
+    if out is None:
+        return np.ones(3)
+    node = follow_link(out.inputs["Surface"])
+    if node is None:
+        warn(f"Light '{light.name}': its node tree has nothing connected to Surface; it emits nothing.")
+        return np.zeros(3)
+    if node.bl_idname != "ShaderNodeEmission":
+        warn(f"Light '{light.name}': node '{node.name}' in its node tree is not supported; "
+             "using the light colour only.")
+        return np.ones(3)
+    col, stre = node.inputs["Color"], node.inputs["Strength"]
+    if col.is_linked or stre.is_linked:
+        warn(f"Light '{light.name}': textures in its node tree are not supported; using the socket values.")
+    return np.array(col.default_value[:3], np.float64) * float(stre.default_value)
+
+
+def light_row(light, name: str, matrix_world: np.ndarray, visible_camera: bool, warn) -> dict | None:
+    """One Lights row for light datablock `light` placed by `matrix_world` (4,4).
+    Returns None for lights that cannot contribute (zero strength or zero area)."""
+    m = np.asarray(matrix_world, np.float64).reshape(4, 4)
+    axes = m[:3, :3].T.copy()  # rows = world x, y, z axes (with scale)
+    lengths = np.linalg.norm(axes, axis=1)
+    strength = light_strength(light, warn)
+    if not np.any(strength != 0.0):
+        return None
+    normalize = bool(getattr(light, "normalize", True))
+    frame = axes / np.where(lengths > 0, lengths, 1.0)[:, None]
+    row = dict(position=m[:3, 3].copy(), frame=frame, visible=bool(visible_camera), name=name)
+    kind = light.type
+
+    if kind in ("POINT", "SPOT"):
+        r = max(float(light.shadow_soft_size), 0.0)
+        if r > 0:
+            Le = strength / (math.pi * (4.0 * math.pi * r * r)) if normalize else strength / math.pi
+        else:
+            Le = strength / (4.0 * math.pi) if normalize else strength / math.pi
+        row.update(kind=LIGHT_POINT, radius=r, Le=Le)
+        if kind == "SPOT":
+            cos_half = math.cos(0.5 * float(light.spot_size))
+            row.update(kind=LIGHT_SPOT, spot_cos_half=cos_half,
+                       spot_smooth=(1.0 - cos_half) * float(light.spot_blend))
+            if not np.allclose(lengths, lengths[0], rtol=1e-5):
+                _unsupported(warn, "Non-uniformly scaled spot lights (elliptic cones) are not "
+                                   "supported; using round cones", name)
+    elif kind == "SUN":
+        half = 0.5 * float(light.angle)
+        if half > 0:
+            Le = strength / (math.pi * math.sin(half) ** 2) if normalize else strength
+        else:
+            Le = strength
+        row.update(kind=LIGHT_SUN, sun_half_angle=half, Le=Le)
+    elif kind == "AREA":
+        shape = light.shape
+        sx = float(light.size)
+        sy = float(light.size_y) if shape in ("RECTANGLE", "ELLIPSE") else sx
+        ex, ey = abs(sx) * lengths[0], abs(sy) * lengths[1]  # full world extents
+        ellipse = shape in ("DISK", "ELLIPSE")
+        area = ex * ey * (math.pi / 4.0 if ellipse else 1.0)
+        if not area > 0:
+            return None
+        Le = strength / (math.pi * area) if normalize else strength / math.pi
+        row.update(kind=LIGHT_DISK if ellipse else LIGHT_RECT, size=(0.5 * ex, 0.5 * ey), Le=Le)
+        spread = float(getattr(light, "spread", math.pi))
+        if spread < math.pi - 1e-6:
+            _unsupported(warn, "Area light spread below 180 degrees is not supported; "
+                               "emitting over the full hemisphere", name)
+    else:
+        warn(f"Light '{name}' has unsupported type {kind}; skipped.")
+        return None
+    return row
+
+
+def export_light(ob, matrix_world, warn) -> dict | None:
+    """Row for an evaluated LIGHT object instance (None if it contributes nothing)."""
+    light = ob.data
+    if not getattr(light, "use_shadow", True):
+        _unsupported(warn, "Lights without shadows are not supported; they cast shadows", ob.name)
+    if not (getattr(ob, "visible_diffuse", True) and getattr(ob, "visible_glossy", True)
+            and getattr(ob, "visible_transmission", True)):
+        _unsupported(warn, "Per-ray-type light visibility is not supported; they light everything", ob.name)
+    return light_row(light, ob.name, matrix_world, getattr(ob, "visible_camera", True), warn)

@@ -1,0 +1,286 @@
+"""Mesh instances -> one world-space triangle soup (Mesh).
+
+Each distinct evaluated mesh (keyed by the evaluated mesh datablock, so objects sharing a
+mesh, collection instances and geometry-nodes instances of one geometry share it) is
+extracted once with to_mesh() + foreach_get into preallocated float32/int32 arrays.
+Instances are grouped per (mesh, material slots) and transformed with NumPy in chunks:
+positions by the 4x4, corner normals by the inverse transpose (renormalised). A
+negative-determinant transform reverses the triangle winding (and the corner order) so
+the winding normal keeps agreeing with the shading normals, as Cycles does for
+negatively scaled objects. Zero-area triangles are dropped (counted, one warning).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import EmberError
+from ..scene import Mesh
+
+# A triangle is degenerate when |e1 x e2| <= EPS_SIN * |e1| |e2| (collinear in float32).
+EPS_SIN = 1e-7
+# Work arrays per transform chunk stay around this many vertices/corners.
+CHUNK_ELEMENTS = 1 << 21
+
+
+class _Proto:
+    __slots__ = ("positions", "triangles", "normals", "slot", "n_dropped")
+
+    def __init__(self, positions, triangles, normals, slot, n_dropped):
+        self.positions = positions  # (V,3) float32 local
+        self.triangles = triangles  # (T,3) int32, degenerate ones removed
+        self.normals = normals  # (T,3,3) float32 local corner normals
+        self.slot = slot  # (T,) int32 material slot index
+        self.n_dropped = n_dropped
+
+
+def _ints(collection, prop, n) -> np.ndarray:
+    a = np.empty(n, np.int32)
+    collection.foreach_get(prop, a)
+    return a
+
+
+def corner_tris_blender(me) -> np.ndarray:
+    """(T,3) corner (loop) indices of the loop triangles, straight from Blender (slow:
+    LoopTriangle properties are computed per element, ~0.4 s per million)."""
+    return _ints(me.loop_triangles, "loops", 3 * len(me.loop_triangles)).reshape(-1, 3)
+
+
+PER_ELEMENT_LIMIT = 20000  # triangles read one by one from Blender before giving up
+QUAD_FOLD_COS = -0.5  # quads folded or concave beyond this are read from Blender
+
+
+def corner_tris(me, positions=None, corner_vert=None) -> np.ndarray:
+    """(T,3) corner indices of the loop triangles, identical to Blender's (a test checks
+    it): triangles come in face order, face i starting at triangle loop_start[i] - 2i;
+    triangles are (0,1,2), quads (0,1,2), (0,2,3) unless Blender flips a concave or folded
+    quad to the 1-3 diagonal. N-gon triangles (polyfill) and every quad that is folded or
+    concave enough for the two flip tests Blender uses to possibly disagree with this one
+    are read from Blender itself, one by one."""
+    n_tri, n_loop, n_poly = len(me.loop_triangles), len(me.loops), len(me.polygons)
+    if positions is None:
+        positions = np.empty(3 * len(me.vertices), np.float32)
+        me.attributes["position"].data.foreach_get("vector", positions)
+    if corner_vert is None:
+        corner_vert = _ints(me.loops, "vertex_index", n_loop)
+    positions = positions.reshape(-1, 3)
+    tri_poly = _ints(me.loop_triangle_polygons, "value", n_tri)
+    start = _ints(me.polygons, "loop_start", n_poly)
+    size = np.diff(np.append(start, n_loop))
+    if int((size - 2).sum()) != n_tri:  # unexpected layout: trust Blender
+        return corner_tris_blender(me)
+    s = start[tri_poly]
+    j = np.arange(n_tri, dtype=np.int32) - (start - 2 * np.arange(n_poly, dtype=np.int32))[tri_poly]
+    tris = np.stack([s, s + 1 + j, s + 2 + j], axis=1)
+    tri_size = size[tri_poly]
+    ask = [np.flatnonzero(tri_size > 4)]
+    first = np.flatnonzero((tri_size == 4) & (j == 0))  # first triangle of each quad
+    if len(first):
+        q = s[first][:, None] + np.arange(4, dtype=np.int32)
+        v = positions[corner_vert[q]].astype(np.float64)  # (Q,4,3)
+        d13 = v[:, 2] - v[:, 0]
+        ca = np.cross(v[:, 1] - v[:, 0], d13)
+        cb = np.cross(v[:, 3] - v[:, 0], d13)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cos = np.einsum("ij,ij->i", ca, cb) / np.sqrt(np.einsum("ij,ij->i", ca, ca) * np.einsum("ij,ij->i", cb, cb))
+        unsure = first[~(cos < QUAD_FOLD_COS)]  # NaN (degenerate) counts as unsure
+        ask += [unsure, unsure + 1]
+    ask = np.concatenate(ask)
+    if len(ask) > PER_ELEMENT_LIMIT:
+        return corner_tris_blender(me)
+    if len(ask):
+        lt = me.loop_triangles
+        tris[ask] = [tuple(lt[i].loops) for i in ask.tolist()]
+    return tris
+
+
+def extract_mesh(ob) -> _Proto | None:
+    """Triangles of an evaluated object (modifiers applied). None if it has none."""
+    me = ob.to_mesh()
+    try:
+        if me is None:
+            return None
+        me.calc_loop_triangles()
+        n_tri, n_vert, n_loop = len(me.loop_triangles), len(me.vertices), len(me.loops)
+        if n_tri == 0:
+            return None
+        attrs = me.attributes
+        pos = np.empty(n_vert * 3, np.float32)
+        attrs["position"].data.foreach_get("vector", pos)
+        cv = attrs.get(".corner_vert")
+        if cv is not None and cv.domain == "CORNER" and len(cv.data) == n_loop:
+            corner_vert = _ints(cv.data, "value", n_loop)
+        else:
+            corner_vert = _ints(me.loops, "vertex_index", n_loop)
+        loops = corner_tris(me, pos, corner_vert)
+        mi = attrs.get("material_index")
+        if mi is not None and mi.domain == "FACE" and mi.data_type == "INT":
+            tri_poly = _ints(me.loop_triangle_polygons, "value", n_tri)
+            slot = _ints(mi.data, "value", len(me.polygons))[tri_poly]
+        else:
+            slot = np.zeros(n_tri, np.int32)
+        corner = np.empty(n_loop * 3, np.float32)
+        me.corner_normals.foreach_get("vector", corner)
+    finally:
+        ob.to_mesh_clear()
+    tris = corner_vert[loops]
+    normals = corner.reshape(-1, 3)[loops]
+    return _finish_proto(pos.reshape(-1, 3), tris, normals, slot)
+
+
+def _sin2(e1, e2):
+    """(|e1 x e2|^2, |e1|^2 |e2|^2) per row."""
+    cx = e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]
+    cy = e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]
+    cz = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    return cx * cx + cy * cy + cz * cz, (e1 * e1).sum(1) * (e2 * e2).sum(1)
+
+
+def _finish_proto(pos, tris, normals, slot) -> _Proto:
+    """Drop degenerate triangles and repair bad corner normals. pos (V,3) float32."""
+    n_tri = len(tris)
+    a, b, c = pos[tris[:, 0]], pos[tris[:, 1]], pos[tris[:, 2]]
+    # Fast float32 pass; float32 rounding of the cross product is a few 1e-8 |e1||e2|,
+    # so only triangles with sin(angle) below 1e-6 need the exact float64 test.
+    c2, l2 = _sin2(b - a, c - a)
+    with np.errstate(invalid="ignore", over="ignore"):
+        valid = c2 > np.float32(1e-12) * l2
+    unsure = np.flatnonzero(~valid)
+    if len(unsure):
+        i0, i1, i2 = (pos[tris[unsure, k]].astype(np.float64) for k in range(3))
+        c2u, l2u = _sin2(i1 - i0, i2 - i0)
+        valid[unsure] = (c2u > (EPS_SIN * EPS_SIN) * l2u) & np.isfinite(c2u) & np.isfinite(l2u)
+    n_dropped = int(n_tri - np.count_nonzero(valid))
+    if n_dropped:
+        tris, normals, slot = tris[valid], normals[valid], slot[valid]
+        a, b, c = a[valid], b[valid], c[valid]
+    # Guard against zero/non-finite corner normals: use the face normal there.
+    n2 = np.einsum("ijk,ijk->ij", normals, normals)
+    bad = ~(n2 > 0.5)  # corner normals from Blender are unit; catches 0 and NaN
+    if bad.any():
+        ti, ci = np.nonzero(bad)
+        face = np.cross((b[ti] - a[ti]).astype(np.float64), (c[ti] - a[ti]).astype(np.float64))
+        normals[ti, ci] = face / np.linalg.norm(face, axis=1)[:, None]
+    return _Proto(pos, np.ascontiguousarray(tris, np.int32), np.ascontiguousarray(normals, np.float32),
+                  np.ascontiguousarray(slot, np.int32), n_dropped)
+
+
+def _normalize_rows(v: np.ndarray) -> np.ndarray:
+    n = np.sqrt(np.einsum("...i,...i->...", v, v))
+    return v / np.where(n > 0, n, 1.0)[..., None]
+
+
+class MeshCollector:
+    """Fed with every visible MESH instance during the depsgraph walk, then `build()`."""
+
+    def __init__(self, materials, warn, material_override=None):
+        self._materials = materials
+        self._warn = warn
+        self._override = material_override  # view layer material override (as Cycles)
+        self._protos: dict[int, _Proto | None] = {}
+        self._groups: dict[tuple, list] = {}
+        self._slot_cache: dict[tuple, tuple] = {}
+
+    @property
+    def n_meshes(self) -> int:
+        return sum(p is not None for p in self._protos.values())
+
+    def _slots(self, ob, data_key) -> tuple:
+        key = (ob.original.as_pointer(), data_key)
+        mats = self._slot_cache.get(key)
+        if mats is None:
+            slots = ob.material_slots
+            if self._override is not None:
+                mats = (self._materials.index(self._override),)
+            elif len(slots):
+                mats = tuple(self._materials.index(s.material) for s in slots)
+            else:
+                mats = tuple(self._materials.index(m) for m in ob.data.materials)
+            self._slot_cache[key] = mats
+        return mats
+
+    def add(self, ob, matrix_world) -> None:
+        """ob: evaluated MESH object of the current instance; matrix_world: a copy."""
+        data_key = ob.data.as_pointer()
+        proto = self._protos.get(data_key, False)
+        if proto is False:
+            proto = self._protos[data_key] = extract_mesh(ob)
+        if proto is None:
+            return
+        group = (data_key, self._slots(ob, data_key))
+        lst = self._groups.get(group)
+        if lst is None:
+            lst = self._groups[group] = []
+        lst.append(matrix_world)
+
+    def build(self, check=lambda: None, report=lambda msg: None) -> Mesh:
+        plan = []  # (proto, material lookup, matrices (k,4,4), det (k,))
+        n_vert = n_tri = 0
+        dropped = 0
+        for (data_key, mats), matrices in self._groups.items():
+            proto = self._protos[data_key]
+            M = np.array(matrices, np.float64).reshape(-1, 4, 4)
+            det = np.linalg.det(M[:, :3, :3])
+            ok = np.isfinite(det) & (det != 0.0) & np.all(np.isfinite(M.reshape(len(M), -1)), axis=1)
+            dropped += proto.n_dropped * len(M)
+            if not ok.all():
+                dropped += len(proto.triangles) * int(np.count_nonzero(~ok))
+                M, det = M[ok], det[ok]
+            if len(M) == 0 or len(proto.triangles) == 0:
+                continue
+            plan.append((proto, mats, M, det))
+            n_vert += len(M) * len(proto.positions)
+            n_tri += len(M) * len(proto.triangles)
+
+        if n_vert >= 2**31:
+            raise EmberError(f"The scene has {n_vert} vertices after instancing; at most 2^31 are supported.")
+        vertices = np.empty((n_vert, 3), np.float32)
+        triangles = np.empty((n_tri, 3), np.int32)
+        normals = np.empty((n_tri, 3, 3), np.float32)
+        material = np.empty(n_tri, np.int32)
+
+        default = None
+        v0 = t0 = 0
+        for gi, (proto, mats, M, det) in enumerate(plan):
+            check()
+            report(f"Export: meshes {gi + 1}/{len(plan)}")
+            V, T = len(proto.positions), len(proto.triangles)
+            if mats:
+                lut = np.array(mats, np.int32)
+                mat_local = lut[np.clip(proto.slot, 0, len(lut) - 1)]
+            else:
+                if default is None:
+                    default = self._materials.index(None)
+                mat_local = np.full(T, default, np.int32)
+            flipped_tris = proto.triangles[:, [0, 2, 1]]
+            corners = proto.normals.reshape(-1, 3)
+            chunk = max(1, CHUNK_ELEMENTS // max(V, 3 * T))
+            for s in range(0, len(M), chunk):
+                Mc, dc = M[s:s + chunk], det[s:s + chunk]
+                k = len(Mc)
+                R = Mc[:, :3, :3]
+                P = np.matmul(proto.positions[None], R.transpose(0, 2, 1)) + Mc[:, None, :3, 3]
+                vertices[v0:v0 + k * V] = P.reshape(-1, 3)
+                # Corner normals by the inverse transpose: row vector n -> n R^-1. For a
+                # rotation times uniform scale s, R^-1 = R^T / s^2: n R^T is unit already.
+                RtR = np.matmul(R.transpose(0, 2, 1), R)
+                s2 = np.trace(RtR, axis1=1, axis2=2) / 3.0
+                dev = np.abs(RtR - s2[:, None, None] * np.eye(3)).max(axis=(1, 2))
+                if np.all(dev <= 1e-6 * s2):
+                    Nt = (R / np.sqrt(s2)[:, None, None]).transpose(0, 2, 1).astype(np.float32)
+                    N = np.matmul(corners[None], Nt).reshape(k, T, 3, 3)
+                else:
+                    Rinv = np.linalg.inv(R).astype(np.float32)
+                    N = _normalize_rows(np.matmul(corners[None], Rinv)).reshape(k, T, 3, 3)
+                offs = (v0 + V * np.arange(k, dtype=np.int64))[:, None, None]
+                neg = dc < 0
+                tri = np.where(neg[:, None, None], flipped_tris[None], proto.triangles[None]) + offs
+                if neg.any():
+                    N[neg] = N[neg][:, :, [0, 2, 1]]
+                triangles[t0:t0 + k * T] = tri.reshape(-1, 3)
+                normals[t0:t0 + k * T] = N.reshape(-1, 3, 3)
+                material[t0:t0 + k * T] = np.tile(mat_local, k)
+                v0 += k * V
+                t0 += k * T
+        if dropped:
+            self._warn(f"{dropped} zero-area triangle(s) were dropped.")
+        return Mesh(vertices=vertices, triangles=triangles, normals=normals, material=material)

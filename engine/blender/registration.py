@@ -1,0 +1,31 @@
+"""register()/unregister() for the whole add-on: settings, engine, panels.
+
+Order matters: the PropertyGroup before the panels that draw it; unregister in reverse.
+Both are safe to call again (re-enable after disable works, a second register() first
+unregisters what is there).
+"""
+import bpy
+
+from ...ui import panels, properties
+from . import engine
+
+_registered = False
+
+
+def register():
+    global _registered
+    if _registered:
+        unregister()
+    properties.register()
+    bpy.utils.register_class(engine.EmberRenderEngine)
+    panels.register()
+    _registered = True
+
+
+def unregister():
+    global _registered
+    panels.unregister()
+    if getattr(engine.EmberRenderEngine, "is_registered", False):
+        bpy.utils.unregister_class(engine.EmberRenderEngine)
+    properties.unregister()
+    _registered = False

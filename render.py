@@ -1,0 +1,367 @@
+"""Ember headless render.
+
+    python render.py scene.blend --output out.png [options]      (bpy module)
+    blender -b scene.blend -P render.py -- --output out.exr [options]
+
+Options (each defaults to the scene's own setting):
+    --output PATH        .png: 8-bit RGBA through the scene's colour management (view
+                         transform, look, compositor) - what Blender would save;
+                         .exr: linear float32 RGBA, straight from the film.
+                         Default: <blend name>.png in the current directory.
+    --samples N          samples per pixel (>= 1)
+    --time-limit S       stop after S seconds (0 = no limit)
+    --seed K             random seed (>= 0)
+    --integrator NAME    e.g. path
+    --resolution WxH     frame size in pixels (resolution percentage becomes 100 %)
+    --max-depth N        longest path (1..1024)
+    --no-progress        no progress bar on stderr
+
+The .blend is only read: settings are changed on the loaded copy in memory and nothing
+is saved. Exit codes: 0 done, 1 render failed, 2 bad input (file, option, scene),
+130 interrupted (Ctrl-C; a second Ctrl-C stops at once).
+
+Design: the render goes through bpy.ops.render.render with the EMBER engine, the same
+path as F12 in Blender (engine/blender/final.py: export, progressive result writes,
+border, view layers, error reports, compositor), so the CLI exercises and tests the
+product rather than a parallel path. It follows the render through final.listeners
+(progress bar, stop on Ctrl-C, the film for EXR output).
+"""
+from __future__ import annotations
+
+import argparse
+import pathlib
+import shutil
+import signal
+import sys
+import time
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+HERE = pathlib.Path(__file__).resolve().parent
+IN_BLENDER = "bpy" in sys.modules  # Blender's own interpreter has bpy loaded before -P runs
+BLEND_MAGIC = (b"BLENDER", b"\x28\xb5\x2f\xfd", b"\x1f\x8b")  # plain, zstd, gzip
+
+
+class UsageError(Exception):
+    """Bad input: printed as one line, exit code 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UsageError(message)
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}")
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def _non_negative_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}")
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must not be negative, got {value}")
+    return value
+
+
+def _non_negative_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}")
+    if not value >= 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
+    return value
+
+
+def _max_depth(text):
+    value = _positive_int(text)
+    if value > 1024:
+        raise argparse.ArgumentTypeError(f"must be at most 1024, got {value}")
+    return value
+
+
+def _resolution(text):
+    parts = text.lower().split("x")
+    try:
+        w, h = (int(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT such as 640x480, got {text!r}")
+    if w < 1 or h < 1 or w > 65536 or h > 65536:
+        raise argparse.ArgumentTypeError(f"width and height must be 1..65536, got {text!r}")
+    return w, h
+
+
+def build_parser(blend_required: bool) -> argparse.ArgumentParser:
+    p = _Parser(prog="render.py", description="Render a .blend with Ember, headless.",
+                epilog="Options left out keep the scene's own settings.")
+    p.add_argument("blend", nargs=None if blend_required else "?", help="the .blend file to render")
+    p.add_argument("-o", "--output", help="output image, .png or .exr (default: <blend name>.png)")
+    p.add_argument("--samples", type=_positive_int, help="samples per pixel")
+    p.add_argument("--time-limit", type=_non_negative_float, help="seconds, 0 = no limit")
+    p.add_argument("--seed", type=_non_negative_int, help="random seed")
+    p.add_argument("--integrator", help="light transport method, e.g. path")
+    p.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT in pixels")
+    p.add_argument("--max-depth", type=_max_depth, help="longest light path (1..1024)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return p
+
+
+def _check_blend(path: pathlib.Path) -> None:
+    if not path.exists():
+        raise UsageError(f"file not found: {path}")
+    if not path.is_file():
+        raise UsageError(f"not a file: {path}")
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(7)
+    except OSError as e:
+        raise UsageError(f"cannot read {path}: {e.strerror or e}")
+    if not head.startswith(BLEND_MAGIC):
+        raise UsageError(f"not a .blend file: {path}")
+
+
+def _check_output(path: pathlib.Path) -> str:
+    kind = path.suffix.lower()
+    if kind not in (".png", ".exr"):
+        raise UsageError(f"output must end in .png or .exr, got {str(path)!r}")
+    parent = path.parent if str(path.parent) else pathlib.Path(".")
+    if path.is_dir():
+        raise UsageError(f"output path is a directory: {path}")
+    if not parent.is_dir():
+        raise UsageError(f"output directory does not exist: {parent}")
+    existed = path.exists()
+    try:  # really try: permission bits say little for root or read-only file systems
+        with open(path, "ab"):
+            pass
+    except OSError as e:
+        raise UsageError(f"output path is not writable: {path} ({e.strerror or e})")
+    if not existed:
+        path.unlink()
+    return kind
+
+
+class _Follower:
+    """A final.listeners entry: progress bar, Ctrl-C stop, the film and errors."""
+
+    def __init__(self, show_progress: bool):
+        self.show_progress = show_progress
+        self.interrupted = False
+        self.bar = None
+        self.bar_layer = None
+        self.layers = {}  # layer -> (stats, image, border)
+        self.errors = []  # (message, user_error)
+
+    # final.RenderListener interface -------------------------------------------------
+    def should_stop(self):
+        return self.interrupted
+
+    def on_export(self, layer, text):
+        if self.show_progress and self.bar is None:
+            sys.stderr.write(f"\r{layer}: export: {text[:60]:<60}")
+            sys.stderr.flush()
+
+    def on_progress(self, layer, progress):
+        if not self.show_progress:
+            return
+        if self.bar is None or self.bar_layer != layer:
+            self._close_bar()
+            from tqdm import tqdm
+            sys.stderr.write("\r" + " " * 80 + "\r")
+            cols = shutil.get_terminal_size((80, 24)).columns
+            self.bar = tqdm(total=progress.samples_target, desc=layer, unit="spp", file=sys.stderr,
+                            ncols=max(40, min(cols, 120)), leave=True)
+            self.bar_layer = layer
+        self.bar.n = progress.samples_done
+        self.bar.set_postfix_str(f"{progress.rays_per_second / 1e6:.2f} M rays/s", refresh=False)
+        self.bar.refresh()
+
+    def on_layer_done(self, layer, stats, image, border):
+        self._close_bar()
+        self.layers[layer] = (stats, image, border)
+
+    def on_error(self, layer, message, user_error):
+        self._close_bar()
+        self.errors.append((message, user_error))
+
+    # -------------------------------------------------------------------------------
+    def _close_bar(self):
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+    def sigint(self, signum, frame):
+        if self.interrupted:  # second Ctrl-C: stop now
+            raise KeyboardInterrupt
+        self.interrupted = True
+        sys.stderr.write("\nStopping after the current batch (Ctrl-C again to abort)...\n")
+        sys.stderr.flush()
+
+
+def _apply_settings(scene, args) -> None:
+    """Command-line overrides onto the in-memory scene (never saved)."""
+    scene.render.engine = 'EMBER'
+    ember = scene.ember
+    if args.samples is not None:
+        ember.samples = args.samples
+    if args.time_limit is not None:
+        ember.time_limit = args.time_limit
+    if args.seed is not None:
+        if args.seed > 2 ** 31 - 1:
+            raise UsageError(f"--seed must be at most {2 ** 31 - 1}")
+        ember.seed = args.seed
+    if args.max_depth is not None:
+        ember.max_depth = args.max_depth
+    if args.integrator is not None:
+        items = {i.identifier: i for i in type(ember).bl_rna.properties["integrator"].enum_items}
+        wanted = args.integrator.strip().upper()
+        if wanted not in items:
+            names = ", ".join(k.lower() for k in items)
+            raise UsageError(f"unknown integrator {args.integrator!r} (choose one of: {names})")
+        ember.integrator = wanted
+    if args.resolution is not None:
+        scene.render.resolution_x, scene.render.resolution_y = args.resolution
+        scene.render.resolution_percentage = 100
+
+
+def _set_png_format(scene) -> None:
+    settings = scene.render.image_settings
+    if hasattr(settings, "media_type"):  # 5.0+: file_format lists depend on media_type
+        settings.media_type = 'IMAGE'
+    settings.file_format = 'PNG'
+    settings.color_mode = 'RGBA'
+    settings.color_depth = '8'
+
+
+def _fmt_rate(r: float) -> str:
+    return f"{r / 1e6:.2f} M rays/s" if r >= 1e5 else f"{r / 1e3:.1f} k rays/s"
+
+
+def _clean_blender_error(text: str) -> str:
+    text = str(text).strip().splitlines()[-1] if str(text).strip() else "render failed"
+    return text[len("Error: "):] if text.startswith("Error: ") else text
+
+
+def run(argv: list[str]) -> int:
+    t_start = time.perf_counter()
+    args = build_parser(blend_required=not IN_BLENDER).parse_args(argv)
+
+    if args.blend is not None:
+        blend = pathlib.Path(args.blend)
+        _check_blend(blend)
+    else:
+        blend = None
+    stem = blend.stem if blend is not None else "render"
+    output = pathlib.Path(args.output) if args.output else pathlib.Path(f"{stem}.png")
+    kind = _check_output(output)
+
+    import bpy  # after the cheap checks: importing the bpy module takes a moment
+
+    if blend is not None:
+        try:
+            bpy.ops.wm.open_mainfile(filepath=str(blend.resolve()), load_ui=False)
+        except RuntimeError as e:
+            raise UsageError(f"cannot open {blend}: {_clean_blender_error(e)}")
+    elif not bpy.data.filepath:
+        raise UsageError("no .blend loaded: use  blender -b scene.blend -P render.py -- [options]")
+    else:
+        blend = pathlib.Path(bpy.data.filepath)
+
+    if str(HERE) not in sys.path:
+        sys.path.insert(0, str(HERE))
+    from _bootstrap import load_ember
+    ember = load_ember()
+    ember.register()
+    from ember.engine.blender import final
+
+    scene = bpy.context.scene
+    _apply_settings(scene, args)
+    if scene.camera is None:
+        raise UsageError(f"the scene '{scene.name}' has no active camera: add one or set Scene > Camera")
+    if kind == ".png":
+        _set_png_format(scene)
+
+    follower = _Follower(show_progress=not args.no_progress and sys.stderr.isatty())
+    final.listeners.append(follower)
+    previous = signal.signal(signal.SIGINT, follower.sigint)
+    blender_error = None
+    try:
+        bpy.ops.render.render(write_still=False)
+    except RuntimeError as e:  # ERROR reports (ours and Blender's own) raise here
+        blender_error = _clean_blender_error(e)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        follower._close_bar()
+        final.listeners.remove(follower)
+
+    if follower.interrupted:
+        print("Interrupted.", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if follower.errors:
+        message, user_error = follower.errors[0]
+        print(f"render.py: error: {message}", file=sys.stderr)
+        return EXIT_USAGE if user_error else EXIT_FAILED
+    if blender_error is not None:  # Blender refused before our engine ran (e.g. too small)
+        print(f"render.py: error: {blender_error}", file=sys.stderr)
+        return EXIT_USAGE
+    if not follower.layers:
+        print("render.py: error: nothing was rendered (no enabled view layer?)", file=sys.stderr)
+        return EXIT_FAILED
+
+    # The view layer shown in the Render Result: the window's active one if rendered.
+    active = bpy.context.view_layer.name if bpy.context.view_layer else None
+    layer = active if active in follower.layers else next(iter(follower.layers))
+    stats, image, border = follower.layers[layer]
+    try:
+        if kind == ".exr":
+            from ember.engine import imageio
+            if image is None:
+                raise RuntimeError("no film")
+            if scene.render.use_border and scene.render.use_crop_to_border:
+                x0, y0, x1, y1 = border
+                image = image[y0:y1, x0:x1]
+            imageio.write_rgba_exr(output, image)
+        else:
+            bpy.data.images["Render Result"].save_render(filepath=str(output.resolve()), scene=scene)
+    except (OSError, RuntimeError) as e:
+        print(f"render.py: error: could not write {output}: {_clean_blender_error(e)}", file=sys.stderr)
+        return EXIT_FAILED
+    if len(follower.layers) > 1 and kind == ".exr":
+        print(f"note: {len(follower.layers)} view layers rendered; {output} holds '{layer}'",
+              file=sys.stderr)
+
+    samples = min(s.samples for s, _, _ in follower.layers.values())
+    rays = sum(s.rays for s, _, _ in follower.layers.values())
+    render_s = sum(s.elapsed for s, _, _ in follower.layers.values())
+    w, h = scene.render.resolution_x * scene.render.resolution_percentage // 100, \
+        scene.render.resolution_y * scene.render.resolution_percentage // 100
+    print(f"Ember: {blend.name} -> {output}: {w}x{h}, {samples} samples, "
+          f"render {render_s:.2f} s, total {time.perf_counter() - t_start:.2f} s, "
+          f"{_fmt_rate(rays / max(render_s, 1e-9))}", flush=True)
+    return EXIT_OK
+
+
+def main() -> int:
+    argv = sys.argv[sys.argv.index("--") + 1:] if IN_BLENDER and "--" in sys.argv else \
+        ([] if IN_BLENDER else sys.argv[1:])
+    try:
+        return run(argv)
+    except UsageError as e:
+        print(f"render.py: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("Interrupted.", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+if __name__ == "__main__":
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    sys.exit(code)

@@ -1,0 +1,135 @@
+"""Render Properties panels for Ember, and opting Blender's stock panels in.
+
+Blender shows a stock panel only for the engines listed in its COMPAT_ENGINES set. We add
+'EMBER' to every panel that supports the old internal renderer ('BLENDER_RENDER': format,
+output, colour management, lens, ...) plus the EEVEE panels whose settings we read
+(material slots and surface node, world surface, light colour/power/radius, camera depth
+of field). unregister() takes 'EMBER' out of exactly the sets it was added to.
+"""
+import bpy
+
+ENGINE = 'EMBER'
+
+# EEVEE-only panels that draw data Ember reads (blender.md section 1, "Panels").
+EXTRA_PANELS = (
+    'EEVEE_MATERIAL_PT_context_material',
+    'EEVEE_MATERIAL_PT_surface',
+    'EEVEE_WORLD_PT_surface',
+    'DATA_PT_EEVEE_light',
+    'DATA_PT_camera_dof',
+    'DATA_PT_camera_dof_aperture',
+)
+# BLENDER_RENDER panels left out: DATA_PT_light only draws the light-type row, which
+# DATA_PT_EEVEE_light draws too; the previews need bl_use_preview, which we do not set.
+EXCLUDED_PANELS = {'DATA_PT_light', 'DATA_PT_preview', 'TEXTURE_PT_preview'}
+
+
+class EmberRenderPanel:
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "render"
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+
+class EMBER_RENDER_PT_sampling(EmberRenderPanel, bpy.types.Panel):
+    bl_label = "Sampling"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.ember
+        col = layout.column()
+        col.prop(settings, "integrator")
+        col.prop(settings, "samples")
+        col.prop(settings, "time_limit")
+        col.prop(settings, "seed")
+
+
+class EMBER_RENDER_PT_light_paths(EmberRenderPanel, bpy.types.Panel):
+    bl_label = "Light Paths"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.prop(context.scene.ember, "max_depth")
+
+
+class EMBER_RENDER_PT_performance(EmberRenderPanel, bpy.types.Panel):
+    bl_label = "Performance"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.prop(context.scene.ember, "batch_size")
+
+
+classes = (EMBER_RENDER_PT_sampling, EMBER_RENDER_PT_light_paths, EMBER_RENDER_PT_performance)
+
+# The COMPAT_ENGINES sets we added ENGINE to (by identity: mixins share one set object).
+_added_to: dict = {}
+
+
+def _panel_classes():
+    seen = set()
+    stack = list(bpy.types.Panel.__subclasses__())
+    while stack:
+        cls = stack.pop()
+        if cls in seen:
+            continue
+        seen.add(cls)
+        stack.extend(cls.__subclasses__())
+    return seen
+
+
+def stock_panels():
+    """Stock panels Ember opts in to: BLENDER_RENDER ones (minus exclusions) + EXTRA_PANELS."""
+    all_panels = _panel_classes()
+    # Copies such as the node editor's NODE_DATA_PT_light share their original's set object,
+    # so exclusion goes by set identity.
+    excluded = {id(cls.COMPAT_ENGINES) for cls in all_panels
+                if cls.__name__ in EXCLUDED_PANELS and isinstance(getattr(cls, "COMPAT_ENGINES", None), set)}
+    chosen = []
+    for cls in all_panels:
+        engines = getattr(cls, "COMPAT_ENGINES", None)
+        if not isinstance(engines, set) or cls in classes:
+            continue
+        name = cls.__name__
+        if name in EXTRA_PANELS or ('BLENDER_RENDER' in engines and id(engines) not in excluded):
+            chosen.append(cls)
+    return chosen
+
+
+def _add_engine_to_stock_panels():
+    for cls in stock_panels():
+        engines = cls.COMPAT_ENGINES
+        if ENGINE not in engines:
+            engines.add(ENGINE)
+            _added_to[id(engines)] = engines
+
+
+def _remove_engine_from_stock_panels():
+    for engines in _added_to.values():
+        engines.discard(ENGINE)
+    _added_to.clear()
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    _add_engine_to_stock_panels()
+
+
+def unregister():
+    _remove_engine_from_stock_panels()
+    for cls in reversed(classes):
+        if getattr(cls, "is_registered", False):
+            bpy.utils.unregister_class(cls)

@@ -1,0 +1,63 @@
+"""Ember's render settings, stored in the .blend at `scene.ember`.
+
+These are user-facing values only; engine/blender/export.py turns them into
+engine.scene.Settings.
+"""
+import bpy
+from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty
+
+INTEGRATOR_ITEMS = [
+    ('PATH', "Path Tracing", "Unidirectional path tracer with MIS"),
+]
+
+
+class EmberSceneSettings(bpy.types.PropertyGroup):
+    integrator: EnumProperty(
+        name="Integrator",
+        description="Method used to compute light transport",
+        items=INTEGRATOR_ITEMS,
+        default='PATH',
+    )
+    samples: IntProperty(
+        name="Samples",
+        description="Samples per pixel (full passes over the image)",
+        default=64, min=1, soft_max=4096,
+    )
+    max_depth: IntProperty(
+        name="Max Bounces",
+        description="Longest light path, in surface interactions",
+        default=64, min=1, max=1024,
+    )
+    seed: IntProperty(
+        name="Seed",
+        description="Random seed; a render with the same seed and settings is reproducible",
+        default=0, min=0,
+    )
+    time_limit: FloatProperty(
+        name="Time Limit",
+        description="Stop after this many seconds (0 = no limit); the last pass finishes first",
+        default=0.0, min=0.0, soft_max=3600.0, subtype='TIME_ABSOLUTE', unit='TIME_ABSOLUTE',
+    )
+    batch_size: IntProperty(
+        name="Batch Size",
+        description="Rays traced together in one wavefront; bigger is faster but uses more memory",
+        default=65536, min=1024, soft_max=1 << 20,
+    )
+
+
+classes = (EmberSceneSettings,)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.ember = PointerProperty(type=EmberSceneSettings, name="Ember",
+                                            description="Ember render settings")
+
+
+def unregister():
+    if hasattr(bpy.types.Scene, "ember"):
+        del bpy.types.Scene.ember
+    for cls in reversed(classes):
+        if getattr(cls, "is_registered", False):
+            bpy.utils.unregister_class(cls)
