@@ -2,7 +2,13 @@
 the same .blend (design.md test layer 4). References: scenes/reference.py, committed as
 float EXR with the variance of their mean. Compared per pixel by a two-sided z-test
 (Sidak-corrected, Mitsuba 3's acceptance of >= 99.75 % of pixels) and by relMSE, whose
-expectation for an unbiased render is known from the variances."""
+expectation for an unbiased render is known from the variances.
+
+1024 samples per pixel: pixels at the image border and next to the directly seen disk light
+get their value from rare filter-tail samples; below ~1000 samples their estimated variance
+is unreliable and the per-pixel normal approximation fails (measured: 99.3 % accepted at 128
+spp on the Cornell box, 100 % at 1024; 99.73-99.79 % at 512 spp on the lights scene, 99.88 %
+at 1024 over three seeds)."""
 import os
 import pathlib
 import tempfile
@@ -56,7 +62,7 @@ def rel_mse(x, ref):
     return float(np.mean((x - ref) ** 2 / (ref**2 + EPS)))
 
 
-@pytest.mark.parametrize("name,samples", [("cornell_box", 128), ("lights", 128)])
+@pytest.mark.parametrize("name,samples", [("cornell_box", 1024), ("lights", 1024)])
 def test_matches_cycles_reference(name, samples):
     ref_path = ROOT / "tests" / "data" / f"{name}_cycles.exr"
     ch, header = imageio.read_exr(ref_path)
