@@ -27,6 +27,9 @@ LIGHT_DISK = 4  # disk or ellipse
 
 FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
 INTEGRATORS = ("path",)
+# Direct-light strategies: both combined by MIS (default), or one alone (for studies and the
+# strategy-agreement tests; each alone is unbiased too, where it can reach the light).
+STRATEGIES = ("mis", "bsdf", "light")
 
 
 def _f64(a, shape_tail=()):
@@ -181,6 +184,8 @@ class Settings:
     filter: str = "BLACKMAN_HARRIS"
     filter_width: float = 1.5  # pixels
     integrator: str = "path"
+    strategy: str = "mis"
+    noise_target: float = 0.0  # stop when Film.noise() falls below it (0 = off)
     threads: int = 0  # 0 = all cores
 
     def __post_init__(self):

@@ -24,7 +24,7 @@ from .film import Film
 from .integrators.path import PathTracer
 from .lights.light_set import LightSet
 from .rng import Sampler
-from .scene import FILTERS, INTEGRATORS, Scene
+from .scene import FILTERS, INTEGRATORS, STRATEGIES, Scene
 
 UPDATE_INTERVAL = 0.25
 
@@ -53,9 +53,10 @@ class RenderStats:
     cancelled: bool
     noise: float | None
     nonfinite: int
+    stopped_by: str = ""  # "", "cancel", "time limit" or "noise target"
 
     def summary(self) -> str:
-        state = "cancelled" if self.cancelled else "done"
+        state = {"cancel": "cancelled", "": "done"}.get(self.stopped_by, f"stopped at the {self.stopped_by}")
         noise = f" | noise {self.noise:.4f}" if self.noise is not None and np.isfinite(self.noise) else ""
         return (f"Ember {state}: {self.samples} samples in {self.elapsed:.2f} s | "
                 f"{self.rays_per_second / 1e6:.2f} M rays/s | Embree {self.embree_share:.0%} of render time{noise}")
@@ -85,6 +86,10 @@ def validate(scene: Scene) -> None:
         problems.append(f"unknown pixel filter {s.filter!r} (use one of {', '.join(FILTERS)})")
     if not s.filter_width > 0:
         problems.append(f"filter width must be positive (got {s.filter_width})")
+    if s.strategy not in STRATEGIES:
+        problems.append(f"unknown strategy {s.strategy!r} (use one of {', '.join(STRATEGIES)})")
+    if not s.noise_target >= 0:
+        problems.append(f"noise target must be >= 0 (got {s.noise_target})")
     if s.integrator not in INTEGRATORS:
         problems.append(f"unknown integrator {s.integrator!r} (use one of {', '.join(INTEGRATORS)})")
     if problems:
@@ -99,7 +104,8 @@ class RenderSession:
         s = scene.settings
         self.warnings: list[str] = []
         self.accel = Accel(scene.mesh)
-        self.lights = LightSet(scene.lights, scene.mesh, scene.materials, self.accel, self.accel.scene_radius)
+        self.lights = LightSet(scene.lights, scene.mesh, scene.materials, scene.world, self.accel,
+                               self.accel.scene_radius)
         if self.lights.empty and not np.max(scene.world.color) > 0:
             self.warnings.append("The scene has no lights, no emissive materials and a black world: "
                                  "the image will be black.")
@@ -167,6 +173,8 @@ class RenderSession:
                     cancelled = True
                     stop.set()
                 out_of_time = s.time_limit > 0 and time.perf_counter() - t0 >= s.time_limit
+                # The noise estimate needs a few passes to mean anything.
+                out_of_time |= s.noise_target > 0 and samples_done() >= 4 and noise is not None and noise <= s.noise_target
                 if not stop.is_set() and not out_of_time:
                     while len(pending) < 2 * self.threads and submitted < self.n_batches:
                         pending[pool.submit(self._trace, submitted, stop)] = submitted
@@ -196,8 +204,13 @@ class RenderSession:
                     report(pass_completed)
         elapsed = time.perf_counter() - t0
         rays = self.accel.rays - rays0
+        stopped_by = ""
+        if cancelled:
+            stopped_by = "cancel"
+        elif paths_added < self.total_paths:
+            stopped_by = "noise target" if s.noise_target > 0 and noise is not None and noise <= s.noise_target else "time limit"
         if samples_done() and noise is None:
             noise = self.film.noise()
         return RenderStats(samples=samples_done(), elapsed=elapsed, rays=rays, rays_per_second=rays / max(elapsed, 1e-9),
                            embree_seconds=self.accel.embree_seconds, build_seconds=self.build_seconds,
-                           cancelled=cancelled, noise=noise, nonfinite=self.film.nonfinite)
+                           cancelled=cancelled, noise=noise, nonfinite=self.film.nonfinite, stopped_by=stopped_by)

@@ -6,6 +6,8 @@ rule: no light leaks through low-poly geometry); cosines use the shading normal.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..vec import dot, max3
@@ -14,6 +16,19 @@ from .. import sampling
 from ..scene import MAT_DIFFUSE, Materials
 from . import diffuse
 
+
+
+@dataclass
+class BSDFSample:
+    """wi (N,3); weight (N,3) = f |cos| / pdf (the throughput factor); pdf (N,) solid-angle
+    pdf of the whole closure (for delta lobes the lobe's selection probability, never used in
+    MIS); delta (N,) bool: chosen from a delta lobe; valid (N,) bool."""
+
+    wi: np.ndarray
+    weight: np.ndarray
+    pdf: np.ndarray
+    delta: np.ndarray
+    valid: np.ndarray
 
 
 class Closure:
@@ -26,6 +41,8 @@ class Closure:
         # Reflectance drives Russian roulette (seed 000: survival from the material).
         self.reflectance = np.where(is_diffuse[:, None], self.albedo, 0.0)
         self.t, self.b = sampling.frame_from_z(ns)
+        # Points with a non-delta component take part in next-event estimation.
+        self.has_smooth = is_diffuse & (max3(self.albedo) > 0)
 
     @property
     def n(self) -> int:
@@ -44,20 +61,21 @@ class Closure:
             pdf[sel] = diffuse.pdf(cos_i)
         return f, pdf
 
-    def sample(self, u: np.ndarray):
-        """Sample wi for every point. Returns wi (N,3), f (N,3), pdf (N,), valid (N,)."""
+    def sample(self, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
+        """Sample wi at every point; u (N,2) for the direction, u_lobe (N,) to choose a lobe."""
         wi = np.zeros((self.n, 3))
-        f = np.zeros((self.n, 3))
+        weight = np.zeros((self.n, 3))
         pdf = np.zeros(self.n)
         rows = self.diffuse_rows
         if len(rows):
             local = diffuse.sample(u[rows])
             wi[rows] = sampling.to_world(local, self.t[rows], self.b[rows], self.ns[rows])
-            cos_i = np.where(dot(wi[rows], self.ng[rows]) > 0, local[:, 2], 0.0)
-            f[rows] = diffuse.eval(self.albedo[rows], cos_i)
-            pdf[rows] = diffuse.pdf(cos_i)
+            ok = dot(wi[rows], self.ng[rows]) > 0
+            # f cos / pdf = albedo for cosine-weighted sampling of a Lambertian lobe.
+            weight[rows] = np.where(ok[:, None], self.albedo[rows], 0.0)
+            pdf[rows] = np.where(ok, diffuse.pdf(local[:, 2]), 0.0)
         valid = pdf > 0
-        return wi, f, pdf, valid
+        return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=np.zeros(self.n, bool), valid=valid)
 
     def cos_i(self, wi: np.ndarray) -> np.ndarray:
         return np.abs(dot(wi, self.ns))

@@ -33,6 +33,11 @@ _DIMS = 8
 
 
 
+def _towards(n: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """n flipped to the side of w (reflection leaves on the normal's side, refraction not)."""
+    return np.where((dot(n, w) >= 0)[:, None], n, -n)
+
+
 class PathTracer:
     def __init__(self, scene: Scene, accel: Accel, lights: LightSet):
         self.scene = scene
@@ -40,10 +45,14 @@ class PathTracer:
         self.lights = lights
         self.materials = scene.materials
         self.emissive_material = scene.materials.emission.mean(axis=1) > 0
-        self.world = np.asarray(scene.world.color, np.float64)
-        self.has_world = bool(self.world.max() > 0)
         self.max_depth = scene.settings.max_depth
         self.rr_depth = scene.settings.rr_depth
+        strategy = scene.settings.strategy
+        self.use_nee = strategy in ("mis", "light")
+        # Weight of emission found by BSDF sampling relative to MIS: "bsdf" alone counts it in
+        # full (use_mis False), "light" alone drops it after non-delta bounces.
+        self.bsdf_hits = strategy in ("mis", "bsdf")
+        self.mis = strategy == "mis"
 
     def render(self, sampler, px: np.ndarray, py: np.ndarray, stop=None) -> np.ndarray:
         """Radiance estimates (N,3), one path per pixel (px, py). Raises Cancelled if stop is set."""
@@ -67,13 +76,13 @@ class PathTracer:
             hit = self.accel.intersect(o32, d, tmax, skip)
             camera_ray = np.full(len(idx), depth == 0)
             # Light objects the ray passes on its way (they do not stop it).
-            if len(self.lights.hittable) or self.lights.has_suns:
-                Le = self.lights.emission_along(o64, d, hit.t, pdf_prev, ~no_mis, camera_ray)
-                L[idx] += beta * Le
-            # Escaped rays see the world.
+            if len(self.lights.hittable):
+                L[idx] += beta * self.lights.emission_along(o64, d, hit.t, pdf_prev, ~no_mis, camera_ray)
+            # Escaped rays see the suns and the world.
             missed = hit.prim < 0
-            if self.has_world and missed.any() and (depth > 0 or s.world.visible):
-                L[idx[missed]] += beta[missed] * self.world
+            if missed.any() and self.lights.sees_escaped:
+                r = np.flatnonzero(missed)
+                L[idx[r]] += beta[r] * self.lights.escaped(d[r], pdf_prev[r], ~no_mis[r], camera_ray[r])
             keep = ~missed
             idx, beta, pdf_prev, no_mis, hit_p, hit_t, d = (
                 idx[keep], beta[keep], pdf_prev[keep], no_mis[keep], hit.p[keep], hit.t[keep], d[keep])
@@ -103,36 +112,39 @@ class PathTracer:
             ns = np.where(ns_len > 1e-12, ns / np.maximum(ns_len, 1e-300), ng) * side
             ns = np.where((dot(ns, ng_f) > 0)[:, None], ns, ng_f)
             bsdf = Closure(self.materials, mat, ns, ng_f, wo)
-            q = np.ones(len(idx))
-            if depth >= self.rr_depth:
-                q = np.minimum(1.0, max3(bsdf.reflectance))
-            o_next = offset_origin(hit_p, ng_f)
+            albedo = max3(bsdf.reflectance)
+            q = np.minimum(1.0, albedo) if depth >= self.rr_depth else np.ones(len(idx))
             m = len(idx)
-            # Next-event estimation.
-            active = np.flatnonzero(max3(bsdf.reflectance) > 0)
-            if len(active) and not self.lights.empty:
+            # Next-event estimation at points whose BSDF has a non-delta part.
+            active = np.flatnonzero(bsdf.has_smooth)
+            if len(active) and self.use_nee and not self.lights.empty:
                 ls = self.lights.sample(hit_p[active], sampler.get(base, idx[active]),
                                         sampler.get(base + 1, idx[active], 2))
                 f, pdf_b = bsdf.eval(ls.wi, active)
                 cos_i = np.abs(dot(ls.wi, ns[active]))
-                w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + q[active] * pdf_b, 1e-300))
+                pdf_b_mis = q[active] * pdf_b if self.mis else 0.0
+                w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_b_mis, 1e-300))
                 contrib = beta[active] * f * ls.Le * np.divide(cos_i * w, ls.pdf, out=np.zeros(len(active)),
                                                                   where=ls.valid)[:, None]
                 test = np.flatnonzero(max3(contrib) > 0)
                 if len(test):
                     rows = active[test]
-                    blocked = self.accel.occluded(o_next[rows], target=ls.target[test])
+                    o_shadow = offset_origin(hit_p[rows], _towards(ng_f[rows], ls.wi[test]))
+                    blocked = self.accel.occluded(o_shadow, target=ls.target[test])
                     L[idx[rows]] += np.where(blocked[:, None], 0.0, contrib[test])
             # BSDF sampling continues the path; Russian roulette with survival q.
-            wi, f, pdf_b, valid = bsdf.sample(sampler.get(base + 2, idx, 2))
-            survive = valid & (sampler.get(base + 3, idx) < q)
-            cos_i = np.abs(dot(wi, ns))
-            beta = beta * f * np.divide(cos_i, pdf_b * q, out=np.zeros(m), where=survive)[:, None]
+            bs = bsdf.sample(sampler.get(base + 2, idx, 2), sampler.get(base + 4, idx))
+            survive = bs.valid & (sampler.get(base + 3, idx) < q)
+            beta = beta * bs.weight * np.divide(1.0, q, out=np.zeros(m), where=survive)[:, None]
             survive &= max3(beta) > 0
-            idx, beta, d = idx[survive], beta[survive], wi[survive]
-            pdf_prev = (q * pdf_b)[survive]
-            no_mis = np.zeros(len(idx), bool)
-            o64, o32 = hit_p[survive], o_next[survive]
-            skip = prim[survive]
+            keep = np.flatnonzero(survive)
+            idx, beta, d = idx[keep], beta[keep], bs.wi[keep]
+            # Strategy switches: pdf_prev 0 makes emission found after a non-delta bounce weigh 0
+            # ("light" alone); no_mis makes it weigh 1 (after delta bounces, or "bsdf" alone).
+            pdf_prev = (q * bs.pdf)[keep] if self.bsdf_hits else np.zeros(len(keep))
+            no_mis = bs.delta[keep] | (not self.use_nee)
+            o64 = hit_p[keep]
+            o32 = offset_origin(o64, _towards(ng_f[keep], d))
+            skip = prim[keep]
             tmax = None
         return L

@@ -1,7 +1,8 @@
 """All emitters of a scene behind one interface: choose one by power, sample it, evaluate it.
 
 Lights are the analytic ones of `Scene.lights` (indices 0..L-1) followed by the emissive
-triangles (L..L+E-1). Like Cycles, light objects are not geometry: they neither occlude
+triangles (L..L+E-1). The constant world is not sampled (BSDF sampling covers it well);
+rays that escape the scene collect it through `escaped`. Like Cycles, light objects are not geometry: they neither occlude
 shadow rays nor stop other rays; a ray passing through one collects its emission.
 Emissive triangles are ordinary (two-sided) geometry found through `light_of_prim`.
 
@@ -17,7 +18,7 @@ import numpy as np
 from ..vec import dot, max3
 
 from .. import sampling
-from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, Lights, Materials, Mesh
+from ..scene import LIGHT_SUN, Lights, Materials, Mesh, World
 from . import shapes
 
 
@@ -47,7 +48,7 @@ class LightSample:
 
 
 class LightSet:
-    def __init__(self, lights: Lights, mesh: Mesh, materials: Materials, accel, scene_radius: float):
+    def __init__(self, lights: Lights, mesh: Mesh, materials: Materials, world: World, accel, scene_radius: float):
         self.lights = lights
         self.n_analytic = len(lights)
         self.scene_radius = scene_radius
@@ -69,8 +70,11 @@ class LightSet:
         self.select = sampling.Distribution1D(power) if self.count and power.sum() > 0 else None
         self.delta = np.concatenate([shapes.is_delta(lights), np.zeros(len(self.tri_prim), bool)])
         self.kinds_present = sorted(set(lights.kind.tolist()))
-        self.has_suns = bool(np.any(lights.kind == LIGHT_SUN))
         self.hittable = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind != LIGHT_SUN))
+        self.suns = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind == LIGHT_SUN))
+        self.world = np.asarray(world.color, np.float64)
+        self.world_visible = bool(world.visible)
+        self.sees_escaped = bool(len(self.suns)) or bool(self.world.max() > 0)
 
     @property
     def empty(self) -> bool:
@@ -121,24 +125,33 @@ class LightSet:
 
     def emission_along(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, pdf_bsdf: np.ndarray,
                        use_mis: np.ndarray, camera: np.ndarray) -> np.ndarray:
-        """Radiance (N,3) that rays o + t d, 0 < t < tmax, collect from analytic lights they pass
-        through (suns count only when tmax is inf), each weighted by the balance heuristic
+        """Radiance (N,3) that rays o + t d, 0 < t < tmax, collect from the finite analytic lights
+        they pass through, each weighted by the balance heuristic
         pdf_bsdf / (pdf_bsdf + pdf_light) where use_mis, else 1. camera (N,) bool: camera rays
         see only lights marked visible."""
         total = np.zeros((len(o), 3))
         lights = self.lights
-        for i in self.hittable.tolist() + np.flatnonzero(lights.kind == LIGHT_SUN).tolist():
-            kind = int(lights.kind[i])
-            if kind == LIGHT_SUN:
-                hit, Le, pdf_dir = shapes.sun_hit(lights, i, d)
-                hit &= ~np.isfinite(tmax)
-            else:
-                hit, Le, pdf_dir = shapes.hit_analytic(kind, lights, i, o, d, tmax)
-            if not lights.visible[i]:
-                hit &= ~camera
-            if not hit.any():
-                continue
-            pdf_light = self.pmf(np.full(len(o), i)) * pdf_dir
-            w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
-            total += np.where(hit[:, None], Le * w[:, None], 0.0)
+        for i in self.hittable.tolist():
+            hit, Le, pdf_dir = shapes.hit_analytic(int(lights.kind[i]), lights, i, o, d, tmax)
+            total += self._weighted(i, hit, Le, pdf_dir, pdf_bsdf, use_mis, camera)
         return total
+
+    def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray) -> np.ndarray:
+        """Radiance (N,3) for rays leaving the scene along d: suns (MIS-weighted like
+        `emission_along`) and the world (camera rays see it only if it is visible)."""
+        total = np.zeros((len(d), 3))
+        for i in self.suns.tolist():
+            hit, Le, pdf_dir = shapes.sun_hit(self.lights, i, d)
+            total += self._weighted(i, hit, Le, pdf_dir, pdf_bsdf, use_mis, camera)
+        if self.world.max() > 0:
+            total += np.where((~camera | self.world_visible)[:, None], self.world, 0.0)
+        return total
+
+    def _weighted(self, i, hit, Le, pdf_dir, pdf_bsdf, use_mis, camera):
+        if not self.lights.visible[i]:
+            hit = hit & ~camera
+        if not hit.any():
+            return 0.0
+        pdf_light = self.select.pmf(np.full(len(hit), i)) * pdf_dir
+        w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
+        return np.where(hit[:, None], Le * w[:, None], 0.0)
