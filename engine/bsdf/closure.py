@@ -1,7 +1,8 @@
 """The BSDF at N shading points, dispatched once per material kind present.
 
 Frames: `ns` and `ng` arrive already flipped to the side of `wo` (two-sided shading, as
-Cycles). A direction wi is valid only on that side of the *geometric* normal (pbrt-v3's
+Cycles). `prim` and `bary` locate the hits on the mesh (for textures / UVs); a closure may
+replace `ns` (normal maps), and the integrator then uses `closure.ns`. A direction wi is valid only on that side of the *geometric* normal (pbrt-v3's
 rule: no light leaks through low-poly geometry); cosines use the shading normal.
 """
 from __future__ import annotations
@@ -13,7 +14,7 @@ import numpy as np
 from ..vec import dot, max3
 
 from .. import sampling
-from ..scene import MAT_DIFFUSE, Materials
+from ..scene import MAT_DIFFUSE, Scene
 from . import diffuse
 
 
@@ -32,7 +33,9 @@ class BSDFSample:
 
 
 class Closure:
-    def __init__(self, materials: Materials, mat: np.ndarray, ns: np.ndarray, ng: np.ndarray, wo: np.ndarray):
+    def __init__(self, scene: Scene, mat: np.ndarray, ns: np.ndarray, ng: np.ndarray, wo: np.ndarray,
+                 prim: np.ndarray, bary: np.ndarray):
+        materials = scene.materials
         self.ns, self.ng, self.wo = ns, ng, wo
         self.kind = materials.kind[mat]
         self.albedo = materials.base_color[mat]

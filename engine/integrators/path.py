@@ -111,7 +111,8 @@ class PathTracer:
             ns_len = length(ns)[:, None]
             ns = np.where(ns_len > 1e-12, ns / np.maximum(ns_len, 1e-300), ng) * side
             ns = np.where((dot(ns, ng_f) > 0)[:, None], ns, ng_f)
-            bsdf = Closure(self.materials, mat, ns, ng_f, wo)
+            bsdf = Closure(s, mat, ns, ng_f, wo, prim, bary)
+            ns = bsdf.ns  # may be perturbed (normal maps)
             albedo = max3(bsdf.reflectance)
             q = np.minimum(1.0, albedo) if depth >= self.rr_depth else np.ones(len(idx))
             m = len(idx)
