@@ -235,3 +235,17 @@ class Scene:
                 kw[f.name] = v
             parts[part.name] = cls(**kw)
         return Scene(**parts)
+
+
+# --- plain-data form (worker processes): dicts of arrays, no class references ---------------
+def to_plain(obj):
+    """A dataclass tree as nested dicts of arrays/scalars/tuples (picklable anywhere)."""
+    if dataclasses.is_dataclass(obj):
+        return {f.name: to_plain(getattr(obj, f.name)) for f in fields(obj)}
+    return obj
+
+
+def scene_from_plain(data: dict) -> "Scene":
+    parts = {"mesh": Mesh, "materials": Materials, "lights": Lights, "world": World,
+             "camera": Camera, "settings": Settings}
+    return Scene(**{name: cls(**data[name]) for name, cls in parts.items()})

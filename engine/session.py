@@ -1,9 +1,10 @@
 """A render: build the acceleration structures once, then progressive full-frame passes.
 
-Each pass gives every pixel of the border one more sample; a pass is split into batches
-of `Settings.batch_size` paths, traced by a pool of worker threads (embreex and most
-NumPy kernels release the GIL, so both cores work). Results are added to the film in
-batch order, so the same seed gives the same image whatever the thread timing.
+Each pass gives every pixel of the border one more sample; the work (samples x pixels) is
+cut into batches of `Settings.batch_size` paths, traced by worker processes (one per core,
+engine/workers.py) or, for small renders, by one thread of this process. Results are added
+to the film in batch order, and random numbers depend only on (seed, pixel, sample), so the
+same seed gives the same image whatever the timing or the number of workers.
 
 The caller's thread is the only one that calls `on_update` and `should_stop` (Blender's
 API is not thread-safe), at least every `UPDATE_INTERVAL` seconds.
@@ -18,13 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .accel import Accel
+from . import workers
 from .errors import Cancelled, EmberError
 from .film import Film
-from .integrators.path import PathTracer
-from .lights.light_set import LightSet
-from .rng import Sampler
 from .scene import FILTERS, INTEGRATORS, STRATEGIES, Scene
+from .tracer import BatchTracer
 
 UPDATE_INTERVAL = 0.25
 
@@ -54,6 +53,7 @@ class RenderStats:
     noise: float | None
     nonfinite: int
     stopped_by: str = ""  # "", "cancel", "time limit" or "noise target"
+    processes: int = 0  # worker processes used (0: traced in the render process)
 
     def summary(self) -> str:
         state = {"cancel": "cancelled", "": "done"}.get(self.stopped_by, f"stopped at the {self.stopped_by}")
@@ -63,7 +63,8 @@ class RenderStats:
 
     @property
     def embree_share(self) -> float:
-        return self.embree_seconds / max(self.elapsed, 1e-9)
+        """Share of the workers' time spent inside Embree (CPU seconds over worker-seconds)."""
+        return self.embree_seconds / max(self.elapsed * max(self.processes, 1), 1e-9)
 
 
 def validate(scene: Scene) -> None:
@@ -103,81 +104,74 @@ class RenderSession:
         self.scene = scene
         s = scene.settings
         self.warnings: list[str] = []
-        self.accel = Accel(scene.mesh)
-        self.lights = LightSet(scene.lights, scene.mesh, scene.materials, scene.world, self.accel,
-                               self.accel.scene_radius)
-        if self.lights.empty and not np.max(scene.world.color) > 0:
+        self.tracer = BatchTracer(scene)
+        self.accel = self.tracer.accel
+        if self.tracer.lights.empty and not self.tracer.lights.sees_escaped:
             self.warnings.append("The scene has no lights, no emissive materials and a black world: "
                                  "the image will be black.")
-        self.integrator = PathTracer(scene, self.accel, self.lights)
         self.film = Film(s.width, s.height)
-        x0, y0, x1, y1 = s.border
-        ys, xs = np.mgrid[y0:y1, x0:x1]
-        self.px, self.py = xs.ravel(), ys.ravel()
-        self.pixel = self.py * s.width + self.px
-        # Work = samples x pixels in pass-major order, cut into fixed-size batches (a batch
-        # may span several passes of a small image, so per-bounce overhead stays amortised).
-        self.n_pixels = len(self.px)
-        self.total_paths = s.samples * self.n_pixels
-        self.n_batches = -(-self.total_paths // s.batch_size)
-        self.threads = s.threads or os.cpu_count() or 1
+        cores = s.threads or os.cpu_count() or 1
+        # Worker processes pay ~1 s to start; worth it only for renders of several batches.
+        self.processes = cores if cores > 1 and self.tracer.n_batches >= 2 * cores and workers.can_spawn() else 0
         self.build_seconds = time.perf_counter() - t0
 
-    def _trace(self, batch_index: int, stop: threading.Event):
-        s = self.scene.settings
-        k = np.arange(batch_index * s.batch_size, min((batch_index + 1) * s.batch_size, self.total_paths))
-        j = k % self.n_pixels
-        sampler = Sampler(s.seed, self.pixel[j], k // self.n_pixels)
-        return self.integrator.render(sampler, self.px[j], self.py[j], stop)
-
-    def _add(self, batch_index: int, L: np.ndarray) -> None:
+    def _add(self, batch: int, L: np.ndarray) -> None:
         """Add a batch to the film, one pass segment at a time (pixels unique per segment)."""
-        s = self.scene.settings
-        start = batch_index * s.batch_size
-        end = start + len(L)
-        cut = start
-        while cut < end:
-            seg_end = min(end, (cut // self.n_pixels + 1) * self.n_pixels)
-            j = np.arange(cut, seg_end) % self.n_pixels
-            self.film.add(self.pixel[j], L[cut - start:seg_end - start])
+        n_pixels = self.tracer.n_pixels
+        k = self.tracer.batch_paths(batch)
+        cut = 0
+        while cut < len(k):
+            seg_end = min(len(k), cut + n_pixels - k[cut] % n_pixels)
+            self.film.add(self.tracer.pixel[k[cut:seg_end] % n_pixels], L[cut:seg_end])
             cut = seg_end
 
     def run(self, on_update=None, should_stop=None) -> RenderStats:
         s = self.scene.settings
+        tracer = self.tracer
         stop = threading.Event()
+        t0 = time.perf_counter()
+        if self.processes:
+            pool = workers.WorkerPool(self.scene, self.processes)
+            submit, in_flight = pool.submit, 2 * self.processes
+        else:
+            pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ember")
+
+            def submit(batch):
+                return pool.submit(self._trace_here, batch, stop)
+            in_flight = 2
+        self.build_seconds += time.perf_counter() - t0
         pending = {}  # future -> batch index
         finished = {}  # batch index -> radiance, waiting for its turn (film order is fixed)
-        next_add = submitted = 0
-        paths_added = 0
+        next_add = submitted = paths_added = rays = 0
+        embree_seconds = 0.0
         cancelled = False
-        t0 = time.perf_counter()
         last_update = t0
-        rays0 = self.accel.rays
         noise = None
 
         def samples_done():
-            return paths_added // self.n_pixels
+            return paths_added // tracer.n_pixels
 
         def report(pass_completed):
             nonlocal last_update
             if on_update is not None:
                 elapsed = time.perf_counter() - t0
-                rays = self.accel.rays - rays0
-                on_update(Progress(samples_done(), s.samples, paths_added / self.total_paths, elapsed, rays,
+                on_update(Progress(samples_done(), s.samples, paths_added / tracer.total_paths, elapsed, rays,
                                    rays / max(elapsed, 1e-9), pass_completed, noise, self.film))
             last_update = time.perf_counter()
 
-        with ThreadPoolExecutor(max_workers=self.threads, thread_name_prefix="ember") as pool:
-            while next_add < self.n_batches:
+        try:
+            while next_add < tracer.n_batches:
                 if should_stop is not None and not cancelled and should_stop():
                     cancelled = True
                     stop.set()
+                    if self.processes:
+                        break  # workers are killed below; nothing more is added
                 out_of_time = s.time_limit > 0 and time.perf_counter() - t0 >= s.time_limit
                 # The noise estimate needs a few passes to mean anything.
                 out_of_time |= s.noise_target > 0 and samples_done() >= 4 and noise is not None and noise <= s.noise_target
                 if not stop.is_set() and not out_of_time:
-                    while len(pending) < 2 * self.threads and submitted < self.n_batches:
-                        pending[pool.submit(self._trace, submitted, stop)] = submitted
+                    while len(pending) < in_flight and submitted < tracer.n_batches:
+                        pending[submit(submitted)] = submitted
                         submitted += 1
                 if not pending:
                     break
@@ -190,27 +184,41 @@ class RenderSession:
                         finished[b] = None
                 before = samples_done()
                 while next_add in finished:
-                    L = finished.pop(next_add)
-                    if L is None:  # cancelled mid-batch: nothing after it is added either
-                        next_add = self.n_batches
+                    result = finished.pop(next_add)
+                    if result is None:  # cancelled mid-batch: nothing after it is added either
+                        next_add = tracer.n_batches
                         break
+                    L, batch_rays, batch_embree = result
                     self._add(next_add, L)
                     paths_added += len(L)
+                    rays += batch_rays
+                    embree_seconds += batch_embree
                     next_add += 1
                 pass_completed = samples_done() > before
                 if pass_completed:
                     noise = self.film.noise()
                 if pass_completed or time.perf_counter() - last_update >= UPDATE_INTERVAL:
                     report(pass_completed)
+        finally:
+            if self.processes:
+                pool.close(kill=cancelled or bool(pending))
+            else:
+                stop.set()
+                pool.shutdown(wait=True)
         elapsed = time.perf_counter() - t0
-        rays = self.accel.rays - rays0
         stopped_by = ""
         if cancelled:
             stopped_by = "cancel"
-        elif paths_added < self.total_paths:
+        elif paths_added < tracer.total_paths:
             stopped_by = "noise target" if s.noise_target > 0 and noise is not None and noise <= s.noise_target else "time limit"
         if samples_done() and noise is None:
             noise = self.film.noise()
         return RenderStats(samples=samples_done(), elapsed=elapsed, rays=rays, rays_per_second=rays / max(elapsed, 1e-9),
-                           embree_seconds=self.accel.embree_seconds, build_seconds=self.build_seconds,
-                           cancelled=cancelled, noise=noise, nonfinite=self.film.nonfinite, stopped_by=stopped_by)
+                           embree_seconds=embree_seconds, build_seconds=self.build_seconds, cancelled=cancelled,
+                           noise=noise, nonfinite=self.film.nonfinite, stopped_by=stopped_by,
+                           processes=self.processes)
+
+    def _trace_here(self, batch: int, stop: threading.Event):
+        rays0, embree0 = self.accel.rays, self.accel.embree_seconds
+        L = self.tracer.trace(batch, stop)
+        return L, self.accel.rays - rays0, self.accel.embree_seconds - embree0

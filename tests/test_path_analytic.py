@@ -143,3 +143,22 @@ def test_noise_target_stops_the_render():
     session = RenderSession(furnace_box(albedo=0.5, samples=100000, noise_target=0.05))
     stats = session.run()
     assert stats.stopped_by == "noise target" and stats.noise <= 0.05 and stats.samples < 100000
+
+
+def test_worker_processes_give_the_same_image_as_one_thread():
+    """Random numbers depend only on (seed, pixel, sample) and batches are added in order, so
+    two worker processes reproduce the single-thread image bit for bit."""
+    scene = furnace_box(albedo=0.5, samples=8, width=24, height=24, batch_size=512)
+    one = RenderSession(scene.replace(settings=scene.settings.replace(threads=1)))
+    two = RenderSession(scene.replace(settings=scene.settings.replace(threads=2)))
+    assert one.processes == 0 and two.processes == 2
+    s1, s2 = one.run(), two.run()
+    assert s2.processes == 2 and s1.samples == s2.samples == 8 and s1.rays == s2.rays
+    assert np.array_equal(one.film.mean(), two.film.mean())
+
+
+def test_cancel_with_worker_processes():
+    calls = []
+    session = RenderSession(furnace_box(samples=2000, width=24, height=24, batch_size=256, threads=2))
+    stats = session.run(should_stop=lambda: calls.append(1) or len(calls) > 2)
+    assert stats.cancelled and stats.samples < 2000

@@ -1,0 +1,154 @@
+"""Worker processes that trace batches, so that every CPU core renders.
+
+Threads do not scale here: a wavefront bounce is hundreds of mid-sized NumPy operations
+and the GIL is held between them (measured: 1.05x with two threads on two cores). Each
+worker is a separate Python process started with the parent's interpreter
+(`engine/worker_main.py`), which loads this package by file path, receives the Scene as
+plain arrays (no class references, so it works whatever name Blender imported us under),
+builds its own Embree scene and then answers batch requests over its pipes.
+
+Messages are length-prefixed pickles. Parent -> worker: the scene once, then batch
+indices, `None` to quit. Worker -> parent: ("ready",), then ("done", batch, L, rays,
+embree_seconds) or ("error", text).
+"""
+from __future__ import annotations
+
+import os
+import pathlib
+import pickle
+import struct
+import subprocess
+import sys
+import threading
+from concurrent.futures import Future
+
+from .errors import EmberError
+
+_HEADER = struct.Struct("<Q")
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def write_message(stream, obj) -> None:
+    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    stream.write(_HEADER.pack(len(data)))
+    stream.write(data)
+    stream.flush()
+
+
+def read_message(stream):
+    header = stream.read(_HEADER.size)
+    if len(header) < _HEADER.size:
+        return None
+    (size,) = _HEADER.unpack(header)
+    return pickle.loads(stream.read(size))
+
+
+def serve(fin, fout) -> None:
+    """The worker's loop (runs in the child process)."""
+    from .scene import scene_from_plain
+    from .tracer import BatchTracer
+
+    tracer = BatchTracer(scene_from_plain(read_message(fin)))
+    write_message(fout, ("ready",))
+    while True:
+        batch = read_message(fin)
+        if batch is None:
+            return
+        try:
+            rays0, embree0 = tracer.accel.rays, tracer.accel.embree_seconds
+            L = tracer.trace(batch)
+            write_message(fout, ("done", batch, L, tracer.accel.rays - rays0, tracer.accel.embree_seconds - embree0))
+        except Exception:  # reported to the parent, which raises it on its side
+            import traceback
+
+            write_message(fout, ("error", traceback.format_exc()))
+
+
+def can_spawn() -> bool:
+    """A plain Python interpreter is needed; Blender's own binary cannot run the worker."""
+    exe = pathlib.Path(sys.executable or "")
+    return exe.is_file() and not exe.name.lower().startswith("blender")
+
+
+class _Worker:
+    def __init__(self, plain_scene):
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join([p for p in sys.path if p])
+        self.proc = subprocess.Popen([sys.executable, "-u", str(ROOT / "engine" / "worker_main.py"), str(ROOT)],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+        self.pending: list[Future] = []
+        self.lock = threading.Lock()
+        write_message(self.proc.stdin, plain_scene)
+        self.ready = Future()
+        self.reader = threading.Thread(target=self._read, daemon=True, name="ember-worker-reader")
+        self.reader.start()
+
+    def _read(self):
+        while True:
+            try:
+                msg = read_message(self.proc.stdout)
+            except (OSError, EOFError, pickle.UnpicklingError):
+                msg = None
+            if msg is None:
+                self._fail(EmberError("An Ember worker process ended unexpectedly (see the console)."))
+                return
+            if msg[0] == "ready":
+                self.ready.set_result(True)
+                continue
+            with self.lock:
+                fut = self.pending.pop(0)
+            if msg[0] == "done":
+                fut.set_result(msg[2:])
+            else:
+                fut.set_exception(RuntimeError("Ember worker failed:\n" + msg[1]))
+
+    def _fail(self, exc):
+        if not self.ready.done():
+            self.ready.set_exception(exc)
+        with self.lock:
+            pending, self.pending = self.pending, []
+        for fut in pending:
+            if not fut.done():
+                fut.set_exception(exc)
+
+    def submit(self, batch: int) -> Future:
+        fut = Future()
+        with self.lock:
+            self.pending.append(fut)
+        write_message(self.proc.stdin, batch)
+        return fut
+
+    def load(self) -> int:
+        with self.lock:
+            return len(self.pending)
+
+    def close(self, kill: bool):
+        try:
+            if kill:
+                self.proc.kill()
+            else:
+                write_message(self.proc.stdin, None)
+                self.proc.stdin.close()
+            self.proc.wait(timeout=10)
+        except (OSError, ValueError, subprocess.TimeoutExpired):
+            self.proc.kill()
+
+
+class WorkerPool:
+    """n worker processes tracing batches of one scene; `submit` returns a Future of
+    (L (N,3), rays, embree_seconds). Requests go to the least-loaded worker."""
+
+    def __init__(self, scene, n: int):
+        from .scene import to_plain
+
+        plain = to_plain(scene)
+        self.workers = [_Worker(plain) for _ in range(n)]
+        for w in self.workers:
+            w.ready.result()
+
+    def submit(self, batch: int) -> Future:
+        return min(self.workers, key=_Worker.load).submit(batch)
+
+    def close(self, kill: bool = False) -> None:
+        for w in self.workers:
+            w.close(kill)
