@@ -10,10 +10,13 @@ Options (each defaults to the scene's own setting):
                          Default: <blend name>.png in the current directory.
     --samples N          samples per pixel (>= 1)
     --time-limit S       stop after S seconds (0 = no limit)
+    --noise-target X     stop once the estimated relative noise falls to X (0 = off)
     --seed K             random seed (>= 0)
     --integrator NAME    e.g. path
     --resolution WxH     frame size in pixels (resolution percentage becomes 100 %)
     --max-depth N        longest path (1..1024)
+    --reference REF.exr  print relMSE (eps 1e-2) against this linear image (R, G, B
+                         channels, the render's size) as passes complete and at the end
     --no-progress        no progress bar on stderr
 
 The .blend is only read: settings are changed on the loaded copy in memory and nothing
@@ -33,6 +36,7 @@ import pathlib
 import shutil
 import signal
 import sys
+import math
 import time
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -80,6 +84,16 @@ def _non_negative_float(text):
     return value
 
 
+def _noise_target(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number such as 0.02, got {text!r}")
+    if not value >= 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
+    return value
+
+
 def _max_depth(text):
     value = _positive_int(text)
     if value > 1024:
@@ -105,10 +119,13 @@ def build_parser(blend_required: bool) -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", help="output image, .png or .exr (default: <blend name>.png)")
     p.add_argument("--samples", type=_positive_int, help="samples per pixel")
     p.add_argument("--time-limit", type=_non_negative_float, help="seconds, 0 = no limit")
+    p.add_argument("--noise-target", type=_noise_target,
+                   help="stop once the estimated relative noise falls to this (0 = off)")
     p.add_argument("--seed", type=_non_negative_int, help="random seed")
     p.add_argument("--integrator", help="light transport method, e.g. path")
     p.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT in pixels")
     p.add_argument("--max-depth", type=_max_depth, help="longest light path (1..1024)")
+    p.add_argument("--reference", help="linear EXR to print relMSE against while rendering")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p
 
@@ -150,8 +167,9 @@ def _check_output(path: pathlib.Path) -> str:
 class _Follower:
     """A final.listeners entry: progress bar, Ctrl-C stop, the film and errors."""
 
-    def __init__(self, show_progress: bool):
+    def __init__(self, show_progress: bool, reference=None):
         self.show_progress = show_progress
+        self.reference = reference  # _Reference or None
         self.interrupted = False
         self.bar = None
         self.bar_layer = None
@@ -168,6 +186,7 @@ class _Follower:
             sys.stderr.flush()
 
     def on_progress(self, layer, progress):
+        error = self.reference.update(progress, self.bar is None) if self.reference else None
         if not self.show_progress:
             return
         if self.bar is None or self.bar_layer != layer:
@@ -179,7 +198,10 @@ class _Follower:
                             ncols=max(40, min(cols, 120)), leave=True)
             self.bar_layer = layer
         self.bar.n = progress.samples_done
-        self.bar.set_postfix_str(f"{progress.rays_per_second / 1e6:.2f} M rays/s", refresh=False)
+        postfix = f"{progress.rays_per_second / 1e6:.2f} M rays/s"
+        if error is not None:
+            postfix += f", relMSE {error:.3e}"
+        self.bar.set_postfix_str(postfix, refresh=False)
         self.bar.refresh()
 
     def on_layer_done(self, layer, stats, image, border):
@@ -204,6 +226,48 @@ class _Follower:
         sys.stderr.flush()
 
 
+class _Reference:
+    """relMSE of the film against a reference image while the render runs (engine.metrics)."""
+
+    PRINT_EVERY = 2.0  # seconds between progress lines, besides power-of-two sample counts
+
+    def __init__(self, path: pathlib.Path, metrics, imageio):
+        self.path, self.metrics = path, metrics
+        try:
+            self.image = imageio.read_rgb(path).astype(float)
+        except KeyError:
+            raise UsageError(f"reference {path} has no R, G, B channels")
+        except (OSError, RuntimeError, ValueError) as e:
+            raise UsageError(f"cannot read reference {path}: {e}")
+        self.last_print = -float("inf")
+        self.printed_n = 0
+        self.last = None
+
+    def check_size(self, width: int, height: int) -> None:
+        h, w = self.image.shape[:2]
+        if (w, h) != (width, height):
+            raise UsageError(f"reference {self.path} is {w}x{h} but the render is {width}x{height}")
+
+    def error(self, image) -> float:
+        """relMSE over the rendered pixels (alpha > 0) of an (H, W, 4) film image."""
+        return self.metrics.rel_mse(image[..., :3], self.image, image[..., 3] > 0)
+
+    def update(self, progress, print_line: bool):
+        """relMSE after each completed pass (every pixel then has a sample); prints a line when
+        the sample count passes a power of two and at least every PRINT_EVERY seconds."""
+        if not progress.pass_completed:
+            return self.last
+        self.last = self.error(progress.film.image())
+        n = progress.samples_done
+        now = time.perf_counter()
+        if print_line and (n.bit_length() > self.printed_n.bit_length()
+                           or now - self.last_print >= self.PRINT_EVERY):
+            print(f"relMSE {self.last:.4e} (eps {self.metrics.EPS:g}) at {n} samples, "
+                  f"{progress.elapsed:.2f} s", flush=True)
+            self.last_print, self.printed_n = now, n
+        return self.last
+
+
 def _apply_settings(scene, args) -> None:
     """Command-line overrides onto the in-memory scene (never saved)."""
     scene.render.engine = 'EMBER'
@@ -212,6 +276,8 @@ def _apply_settings(scene, args) -> None:
         ember.samples = args.samples
     if args.time_limit is not None:
         ember.time_limit = args.time_limit
+    if args.noise_target is not None:
+        ember.noise_target = args.noise_target
     if args.seed is not None:
         if args.seed > 2 ** 31 - 1:
             raise UsageError(f"--seed must be at most {2 ** 31 - 1}")
@@ -248,6 +314,13 @@ def _clean_blender_error(text: str) -> str:
     return text[len("Error: "):] if text.startswith("Error: ") else text
 
 
+def _load_ember():
+    if str(HERE) not in sys.path:
+        sys.path.insert(0, str(HERE))
+    from _bootstrap import load_ember
+    return load_ember()
+
+
 def run(argv: list[str]) -> int:
     t_start = time.perf_counter()
     args = build_parser(blend_required=not IN_BLENDER).parse_args(argv)
@@ -260,6 +333,16 @@ def run(argv: list[str]) -> int:
     stem = blend.stem if blend is not None else "render"
     output = pathlib.Path(args.output) if args.output else pathlib.Path(f"{stem}.png")
     kind = _check_output(output)
+    reference = None
+    if args.reference is not None:
+        ref_path = pathlib.Path(args.reference)
+        if not ref_path.is_file():
+            raise UsageError(f"reference not found: {ref_path}")
+        if ref_path.suffix.lower() != ".exr":
+            raise UsageError(f"reference must be a linear .exr, got {str(ref_path)!r}")
+        _load_ember()
+        from ember.engine import imageio, metrics
+        reference = _Reference(ref_path, metrics, imageio)
 
     import bpy  # after the cheap checks: importing the bpy module takes a moment
 
@@ -273,10 +356,7 @@ def run(argv: list[str]) -> int:
     else:
         blend = pathlib.Path(bpy.data.filepath)
 
-    if str(HERE) not in sys.path:
-        sys.path.insert(0, str(HERE))
-    from _bootstrap import load_ember
-    ember = load_ember()
+    ember = _load_ember()
     ember.register()
     from ember.engine.blender import final
 
@@ -286,8 +366,12 @@ def run(argv: list[str]) -> int:
         raise UsageError(f"the scene '{scene.name}' has no active camera: add one or set Scene > Camera")
     if kind == ".png":
         _set_png_format(scene)
+    w, h = scene.render.resolution_x * scene.render.resolution_percentage // 100, \
+        scene.render.resolution_y * scene.render.resolution_percentage // 100
+    if reference is not None:
+        reference.check_size(w, h)
 
-    follower = _Follower(show_progress=not args.no_progress and sys.stderr.isatty())
+    follower = _Follower(show_progress=not args.no_progress and sys.stderr.isatty(), reference=reference)
     final.listeners.append(follower)
     previous = signal.signal(signal.SIGINT, follower.sigint)
     blender_error = None
@@ -339,11 +423,17 @@ def run(argv: list[str]) -> int:
     samples = min(s.samples for s, _, _ in follower.layers.values())
     rays = sum(s.rays for s, _, _ in follower.layers.values())
     render_s = sum(s.elapsed for s, _, _ in follower.layers.values())
-    w, h = scene.render.resolution_x * scene.render.resolution_percentage // 100, \
-        scene.render.resolution_y * scene.render.resolution_percentage // 100
+    extra = ""
+    if stats.noise is not None and math.isfinite(stats.noise):
+        extra += f", noise {stats.noise:.4f}"
+    if stats.stopped_by in ("time limit", "noise target"):
+        extra += f", stopped at the {stats.stopped_by}"
+    if reference is not None:
+        full = follower.layers[layer][1]  # the full-frame image, before any crop
+        extra += f", relMSE {reference.error(full):.4e} (eps {reference.metrics.EPS:g})"
     print(f"Ember: {blend.name} -> {output}: {w}x{h}, {samples} samples, "
           f"render {render_s:.2f} s, total {time.perf_counter() - t_start:.2f} s, "
-          f"{_fmt_rate(rays / max(render_s, 1e-9))}", flush=True)
+          f"{_fmt_rate(rays / max(render_s, 1e-9))}{extra}", flush=True)
     return EXIT_OK
 
 

@@ -36,8 +36,10 @@ class Sampler:
 
     def get(self, dim: int, rows=None, k: int = 1) -> np.ndarray:
         key = self.key if rows is None else self.key[rows]
+        u = np.empty((len(key), k))
         with np.errstate(over="ignore"):
-            lanes = np.uint64(4 * dim) + np.arange(k, dtype=np.uint64)
-            x = _mix(key[:, None] + lanes[None, :] * _K_DIM)
-        u = (x >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+            for lane in range(k):  # k <= 4 columns, each a contiguous pass over the keys
+                x = _mix(key + np.uint64(4 * dim + lane) * _K_DIM)
+                u[:, lane] = (x >> np.uint64(11)).astype(np.float64)
+        u *= 1.0 / 9007199254740992.0
         return u[:, 0] if k == 1 else u

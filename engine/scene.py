@@ -14,9 +14,32 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-# Material kinds (shading runs once per kind present in the scene).
-MAT_DIFFUSE = 0  # Lambertian, albedo = base_color
+from .errors import EmberError
+
+# Material kinds: how a material was defined (for messages and tests). What is shaded is its
+# lobes (below); shading runs once per lobe kind present in the scene.
+MAT_DIFFUSE = 0  # one Lambertian lobe, albedo = base_color
 MAT_EMISSION_ONLY = 1  # black BSDF (pure emitter, e.g. an Emission shader)
+MAT_PHONG = 2  # one physically plausible Phong lobe (seed 000)
+MAT_NODES = 3  # lobes converted from a shader node tree
+
+# Lobe kinds. A material's BSDF is the sum of its lobes, each scaled by its weight.
+LOBE_DIFFUSE = 0  # Lambertian: colour / pi
+LOBE_PHONG = 1  # kd = colour, ks = tint, exponent n
+LOBE_MICROFACET = 2  # GGX reflection, alpha = roughness^2; a perfect mirror when smooth
+LOBE_DIELECTRIC = 3  # GGX (or smooth) reflection + refraction with the exact Fresnel of ior
+LOBE_TRANSPARENT = 4  # straight pass-through (alpha, Transparent BSDF)
+LOBE_KINDS = 5
+
+# Fresnel of LOBE_MICROFACET (Cycles' models).
+FRESNEL_NONE = 0  # F = colour (Glossy BSDF)
+FRESNEL_F82 = 1  # conductor: F0 = colour, F82 tint = tint (Principled metallic, Metallic BSDF)
+FRESNEL_DIELECTRIC = 2  # exact Fresnel of ior remapped to F0 = F0(ior) tint .. 1 (Principled)
+
+# Image texture lookups (Cycles' Image Texture node).
+EXT_REPEAT, EXT_EXTEND, EXT_CLIP, EXT_MIRROR = 0, 1, 2, 3
+INTERP_LINEAR, INTERP_CLOSEST = 0, 1
+TEX_COLOR, TEX_ALPHA = 0, 1  # which output of the node feeds the input
 
 # Light kinds. Point and spot are spheres of `radius` (delta when radius == 0).
 LIGHT_POINT = 0
@@ -43,13 +66,19 @@ class Mesh:
 
     vertices (V,3) float32 world positions; triangles (T,3) int32 vertex indices;
     normals (T,3,3) float32 world-space corner (shading) normals, unit length;
-    material (T,) int32 index into Materials.
+    material (T,) int32 index into Materials; uvs (T,3,2) float32 corner texture
+    coordinates of the active render UV map (zeros without one, as Cycles).
     """
 
     vertices: np.ndarray
     triangles: np.ndarray
     normals: np.ndarray
     material: np.ndarray
+    uvs: np.ndarray = None
+
+    def __post_init__(self):
+        if self.uvs is None:
+            object.__setattr__(self, "uvs", np.zeros((len(self.triangles), 3, 2), np.float32))
 
     @staticmethod
     def empty() -> "Mesh":
@@ -61,31 +90,201 @@ class Mesh:
         return len(self.triangles)
 
 
+_LOBE_DEFAULTS = dict(kind=LOBE_DIFFUSE, weight=(1.0, 1.0, 1.0), color=(0.8, 0.8, 0.8), color_tex=-1,
+                      color_sqrt=False, tint=(1.0, 1.0, 1.0), tint_is_color=False, roughness=0.5,
+                      roughness_tex=-1, ior=1.5, fresnel=FRESNEL_NONE, exponent=1.0, layer=-1,
+                      opacity_tex=-1, opacity_invert=False)
+_SLOT_DEFAULTS = dict(image=0, output=TEX_COLOR, extension=EXT_REPEAT, interpolation=INTERP_LINEAR,
+                      transform=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)))
+
+
 @dataclass(frozen=True)
 class Materials:
-    """Per-material tables, (M,) or (M,3).
+    """Per-material tables (M rows), their lobes (K rows) and textures.
 
-    kind: MAT_* per material; base_color (M,3) albedo in [0,1];
-    emission (M,3) emitted radiance W/(m^2 sr) (colour x strength, as Cycles); emission
-    of meshes is two-sided like Cycles'. names: for messages.
+    Materials: kind (M,) MAT_*; base_color (M,3) representative albedo (viewport, messages);
+    emission (M,3) emitted radiance W/(m^2 sr) (colour x strength, as Cycles), two-sided;
+    normal_tex (M,) texture slot of a tangent-space normal map (-1 none) and
+    normal_strength (M,); names.
+
+    Lobes, sorted by material: the BSDF of material m is the sum of its lobes
+    lobe_weight * lobe(colour, ...). lobe_material (K,), lobe_kind (K,) LOBE_*;
+    lobe_weight (K,3) constant factor (mix factors, metallic / transmission split, alpha);
+    lobe_color (K,3) the colour input (diffuse albedo, Glossy colour, conductor F0, glass
+    transmission tint, Phong kd), replaced by texture slot lobe_color_tex (-1 none), taken as
+    sqrt(clamp(colour)) where lobe_color_sqrt (Principled transmission);
+    lobe_tint (K,3): FRESNEL_DIELECTRIC specular tint, FRESNEL_F82 edge tint, dielectric
+    reflection tint (the colour itself where lobe_tint_is_color), Phong ks;
+    lobe_roughness (K,) Blender roughness (alpha = roughness^2), from slot lobe_roughness_tex;
+    lobe_ior (K,) (n_inside / n_outside); lobe_fresnel (K,) FRESNEL_*; lobe_exponent (K,)
+    Phong n; lobe_layer (K,) the lobe this one lies under (it is scaled by 1 - that lobe's
+    albedo, Cycles' closure layering; -1 none); lobe_opacity_tex (K,) slot whose scalar
+    value multiplies the weight (1 - value where lobe_opacity_invert): textured alpha.
+
+    Texture slots (S): tex_image (S,) image index, tex_output (S,) TEX_COLOR / TEX_ALPHA,
+    tex_extension (S,) EXT_*, tex_interpolation (S,) INTERP_*, tex_transform (S,2,3) affine
+    map from mesh UV to image UV (Mapping node). A scalar read from a colour is its luminance.
+
+    Images (I), all texels in one array: image_texels (P,4) float32 RGBA rows bottom-up,
+    image i has image_size[i] = (width, height) texels from image_offset[i]; image_srgb (I,)
+    bool: texels are sRGB-encoded bytes / 255, decoded after interpolation (as Cycles);
+    image_names.
     """
 
     kind: np.ndarray
     base_color: np.ndarray
     emission: np.ndarray
     names: tuple = ()
+    normal_tex: np.ndarray = None
+    normal_strength: np.ndarray = None
+    lobe_material: np.ndarray = None
+    lobe_kind: np.ndarray = None
+    lobe_weight: np.ndarray = None
+    lobe_color: np.ndarray = None
+    lobe_color_tex: np.ndarray = None
+    lobe_color_sqrt: np.ndarray = None
+    lobe_tint: np.ndarray = None
+    lobe_tint_is_color: np.ndarray = None
+    lobe_roughness: np.ndarray = None
+    lobe_roughness_tex: np.ndarray = None
+    lobe_ior: np.ndarray = None
+    lobe_fresnel: np.ndarray = None
+    lobe_exponent: np.ndarray = None
+    lobe_layer: np.ndarray = None
+    lobe_opacity_tex: np.ndarray = None
+    lobe_opacity_invert: np.ndarray = None
+    tex_image: np.ndarray = None
+    tex_output: np.ndarray = None
+    tex_extension: np.ndarray = None
+    tex_interpolation: np.ndarray = None
+    tex_transform: np.ndarray = None
+    image_texels: np.ndarray = None
+    image_size: np.ndarray = None
+    image_offset: np.ndarray = None
+    image_srgb: np.ndarray = None
+    image_names: tuple = ()
+
+    def __post_init__(self):
+        # Tables built without lobes (kind + base_color only) get them from their kind.
+        if self.lobe_kind is None:
+            rows = [dict(kind=int(k), base_color=c) for k, c in zip(self.kind, self.base_color)]
+            full = Materials.make(rows)
+            for f in fields(Materials):
+                if getattr(self, f.name) is None:
+                    object.__setattr__(self, f.name, getattr(full, f.name))
+
+    @property
+    def n_lobes(self) -> int:
+        return len(self.lobe_kind)
 
     @staticmethod
-    def make(rows: list[dict]) -> "Materials":
-        """rows: dicts with kind, base_color, emission, name. Empty -> one grey diffuse."""
+    def make(rows: list[dict], slots: list[dict] = (), images: list[dict] = ()) -> "Materials":
+        """Build the tables from plain Python values.
+
+        rows: dicts with kind, base_color, emission, name, normal_tex, normal_strength and
+        `lobes`, a list of dicts with the lobe_* fields above without the prefix (missing ones
+        get defaults). Without `lobes` a row's kind decides: MAT_DIFFUSE -> one diffuse lobe
+        of base_color; MAT_PHONG -> one Phong lobe from `phong` = (kd, ks, n);
+        MAT_EMISSION_ONLY -> none. Empty rows -> one grey diffuse material.
+        slots: dicts with image, output, extension, interpolation, transform.
+        images: dicts with texels (H,W,4) (or (H,W,C)) bottom row first, srgb, name.
+        Raises EmberError for texture references out of range.
+        """
         if not rows:
             rows = [dict(kind=MAT_DIFFUSE, base_color=(0.8, 0.8, 0.8), emission=(0, 0, 0), name="default")]
-        return Materials(
+        lobes = []
+        for m, r in enumerate(rows):
+            for lobe in _row_lobes(r):
+                lobes.append(dict(_LOBE_DEFAULTS, **lobe, material=m))
+        col = lambda k, dtype: np.array([lb[k] for lb in lobes], dtype)
+        vec = lambda k: np.array([lb[k] for lb in lobes], np.float64).reshape(-1, 3)
+        slots = [dict(_SLOT_DEFAULTS, **s) for s in slots]
+        texels, sizes, offsets, offset = [], [], [], 0
+        for im in images:
+            t = _rgba(im["texels"])
+            texels.append(t.reshape(-1, 4))
+            sizes.append((t.shape[1], t.shape[0]))
+            offsets.append(offset)
+            offset += t.shape[0] * t.shape[1]
+        mats = Materials(
             kind=np.array([r.get("kind", MAT_DIFFUSE) for r in rows], np.int32),
             base_color=np.array([r.get("base_color", (0.8, 0.8, 0.8)) for r in rows], np.float64).reshape(-1, 3),
             emission=np.array([r.get("emission", (0, 0, 0)) for r in rows], np.float64).reshape(-1, 3),
             names=tuple(r.get("name", f"material{i}") for i, r in enumerate(rows)),
+            normal_tex=np.array([r.get("normal_tex", -1) for r in rows], np.int32),
+            normal_strength=np.array([r.get("normal_strength", 1.0) for r in rows], np.float64),
+            lobe_material=col("material", np.int32),
+            lobe_kind=col("kind", np.int32),
+            lobe_weight=vec("weight"),
+            lobe_color=vec("color"),
+            lobe_color_tex=col("color_tex", np.int32),
+            lobe_color_sqrt=col("color_sqrt", bool),
+            lobe_tint=vec("tint"),
+            lobe_tint_is_color=col("tint_is_color", bool),
+            lobe_roughness=col("roughness", np.float64),
+            lobe_roughness_tex=col("roughness_tex", np.int32),
+            lobe_ior=col("ior", np.float64),
+            lobe_fresnel=col("fresnel", np.int32),
+            lobe_exponent=col("exponent", np.float64),
+            lobe_layer=col("layer", np.int32),
+            lobe_opacity_tex=col("opacity_tex", np.int32),
+            lobe_opacity_invert=col("opacity_invert", bool),
+            tex_image=np.array([s["image"] for s in slots], np.int32),
+            tex_output=np.array([s["output"] for s in slots], np.int32),
+            tex_extension=np.array([s["extension"] for s in slots], np.int32),
+            tex_interpolation=np.array([s["interpolation"] for s in slots], np.int32),
+            tex_transform=np.array([s["transform"] for s in slots], np.float64).reshape(-1, 2, 3),
+            image_texels=np.concatenate(texels) if texels else np.zeros((0, 4), np.float32),
+            image_size=np.array(sizes, np.int32).reshape(-1, 2),
+            image_offset=np.array(offsets, np.int64),
+            image_srgb=np.array([bool(im.get("srgb", False)) for im in images], bool),
+            image_names=tuple(im.get("name", f"image{i}") for i, im in enumerate(images)),
         )
+        mats.check()
+        return mats
+
+    def check(self) -> None:
+        """Raise EmberError if a lobe, material or slot refers to something that is not there."""
+        n_slots, n_images, n_lobes = len(self.tex_image), len(self.image_size), self.n_lobes
+        refs = [("normal map", self.normal_tex), ("colour", self.lobe_color_tex),
+                ("roughness", self.lobe_roughness_tex), ("opacity", self.lobe_opacity_tex)]
+        for what, idx in refs:
+            if np.any(idx >= n_slots) or np.any(idx < -1):
+                raise EmberError(f"A material's {what} texture refers to a missing texture slot.")
+        if np.any(self.tex_image >= n_images) or np.any(self.tex_image < 0):
+            raise EmberError("A texture slot refers to a missing image.")
+        if np.any(self.lobe_layer >= n_lobes) or np.any(self.lobe_material >= len(self.kind)):
+            raise EmberError("A material lobe refers to a missing lobe or material.")
+        if n_lobes and np.any(np.diff(self.lobe_material) < 0):
+            raise EmberError("Material lobes must be sorted by material.")
+
+
+def _row_lobes(row: dict) -> list:
+    if "lobes" in row:
+        return list(row["lobes"])
+    kind = row.get("kind", MAT_DIFFUSE)
+    if kind == MAT_DIFFUSE:
+        return [dict(kind=LOBE_DIFFUSE, color=tuple(row.get("base_color", (0.8, 0.8, 0.8))))]
+    if kind == MAT_PHONG:
+        kd, ks, n = row["phong"]
+        return [dict(kind=LOBE_PHONG, color=tuple(kd), tint=tuple(ks), exponent=float(n))]
+    return []
+
+
+def _rgba(texels) -> np.ndarray:
+    """(H,W,C) with C in 1..4 -> (H,W,4) float32 (grey to RGB, alpha 1 where missing)."""
+    t = np.asarray(texels, np.float32)
+    if t.ndim == 2:
+        t = t[:, :, None]
+    h, w, c = t.shape
+    out = np.ones((h, w, 4), np.float32)
+    if c in (1, 2):
+        out[:, :, :3] = t[:, :, :1]
+        if c == 2:
+            out[:, :, 3] = t[:, :, 1]
+    else:
+        out[:, :, :c] = t[:, :, :4]
+    return out
 
 
 @dataclass(frozen=True)
@@ -139,12 +338,28 @@ class Lights:
         return len(self.kind)
 
 
+ENV_PROJECTIONS = ("EQUIRECTANGULAR", "MIRROR_BALL")  # Cycles' Environment Texture projections
+
+
 @dataclass(frozen=True)
 class World:
-    """Background: constant radiance `color` (3,) W/(m^2 sr), seen by camera rays if visible."""
+    """Background radiance L(d) arriving along escaped rays of world direction d.
+
+    color (3,): without an image the constant radiance W/(m^2 sr); with one the factor the
+    image is multiplied by (Background colour x strength).
+    image (H,W,3) float32 linear RGB, rows top-down (row 0 = the top of the picture), or None.
+    projection: one of ENV_PROJECTIONS; Cycles' mapping of directions to the image
+    (engine/lights/environment.py).
+    env_from_world (3,3): the image is looked up at direction env_from_world @ d (normalised),
+    as Cycles' Mapping node transforms the lookup vector (rotation, scale).
+    visible: seen by camera rays (Cycles' camera ray visibility and film transparency).
+    """
 
     color: np.ndarray = field(default_factory=lambda: np.zeros(3))
     visible: bool = True
+    image: np.ndarray = None
+    projection: str = "EQUIRECTANGULAR"
+    env_from_world: np.ndarray = field(default_factory=lambda: np.eye(3))
 
 
 @dataclass(frozen=True)
@@ -228,7 +443,9 @@ class Scene:
             kw = {}
             for f in fields(cls):
                 v = data[f"{part.name}.{f.name}"]
-                if v.dtype == object:
+                if f.default is None and v.shape == () and v.dtype.kind == "f" and np.isnan(v):
+                    v = None  # saved as NaN (an optional array that was absent)
+                elif v.dtype == object:
                     v = v.item() if v.shape == () else tuple(v.tolist())
                 elif v.shape == () and cls in (Settings, Camera, World):
                     v = v.item()

@@ -47,6 +47,7 @@ class EMBER_RENDER_PT_sampling(EmberRenderPanel, bpy.types.Panel):
         col.prop(settings, "integrator")
         col.prop(settings, "samples")
         col.prop(settings, "time_limit")
+        col.prop(settings, "noise_target")
         col.prop(settings, "seed")
 
 

@@ -38,6 +38,12 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
         description="Stop after this many seconds (0 = no limit); the last pass finishes first",
         default=0.0, min=0.0, soft_max=3600.0, subtype='TIME_ABSOLUTE', unit='TIME_ABSOLUTE',
     )
+    noise_target: FloatProperty(
+        name="Noise Target",
+        description="Stop once the estimated relative noise (RMS over pixels of the standard "
+                    "error of the mean over mean + 0.01) falls to this value (0 = off)",
+        default=0.0, min=0.0, soft_max=0.1, step=0.1, precision=4,
+    )
     batch_size: IntProperty(
         name="Batch Size",
         description="Rays traced together in one wavefront; bigger is faster but uses more memory",

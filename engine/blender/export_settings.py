@@ -17,7 +17,7 @@ from ..scene import FILTERS, INTEGRATORS, Settings
 _DEFAULTS = Settings()
 
 # scene.ember field -> Settings field (same name); read with getattr so plain bpy works.
-_EMBER_FIELDS = ("samples", "max_depth", "seed", "time_limit", "batch_size")
+_EMBER_FIELDS = ("samples", "max_depth", "seed", "time_limit", "noise_target", "batch_size")
 _INTEGRATOR_ENUM = {"PATH": "path"}
 
 
@@ -85,7 +85,9 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
     filt = getattr(cycles, "pixel_filter_type", None) if cycles is not None else None
     if filt in FILTERS:
         kw["filter"] = filt
-        kw["filter_width"] = float(getattr(cycles, "filter_width", _DEFAULTS.filter_width))
+        # Cycles' Blender sync renders a box filter one pixel wide whatever filter_width says
+        # (intern/cycles/blender/sync.cpp).
+        kw["filter_width"] = 1.0 if filt == "BOX" else float(getattr(cycles, "filter_width", _DEFAULTS.filter_width))
 
     overrides = {k: v for k, v in (overrides or {}).items() if v is not None}
     known = {f.name for f in dataclasses.fields(Settings)}

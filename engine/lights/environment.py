@@ -39,8 +39,7 @@ import numpy as np
 
 from .. import sampling
 from ..errors import EmberError
-
-PROJECTIONS = ("EQUIRECTANGULAR", "MIRROR_BALL")
+from ..scene import ENV_PROJECTIONS
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec.709 / sRGB primaries
 _BALL_SUBSAMPLES = 8  # per axis, to estimate how much of a mirror-ball pixel lies in the ball
 _BALL_MIN_FRACTION = 1e-3  # a pixel that touches the ball is never given weight 0
@@ -59,14 +58,15 @@ class EnvironmentMap:
     """The world's image light. Build once per render; all methods are wavefront.
 
     image (H, W, 3) float32 linear RGB, rows top-down (kept by reference, not copied);
-    scale (3,) radiance factor (Background colour x strength); projection in PROJECTIONS;
+    scale (3,) radiance factor (Background colour x strength); projection in ENV_PROJECTIONS;
     env_from_world (3, 3) invertible. Attributes: power_integral (3,) = integral of L over the
     sphere (W/m^2 per channel), used for light selection.
     """
 
     def __init__(self, image, scale=(1.0, 1.0, 1.0), projection="EQUIRECTANGULAR", env_from_world=None):
-        if projection not in PROJECTIONS:
-            raise EmberError(f"Unknown environment projection {projection!r} (use one of {', '.join(PROJECTIONS)}).")
+        if projection not in ENV_PROJECTIONS:
+            raise EmberError(f"Unknown environment projection {projection!r} "
+                             f"(use one of {', '.join(ENV_PROJECTIONS)}).")
         self.image = _as_image(image)
         self.scale = np.asarray(scale, np.float64).reshape(3)
         self.projection = projection
@@ -234,3 +234,25 @@ def _ball_fraction(H: int, W: int) -> np.ndarray:
     inside = (X[:, None, :] ** 2 + Z[:, :, None] ** 2 < 1.0).mean(axis=(1, 2))
     fraction[rim_r, rim_c] = np.maximum(inside, _BALL_MIN_FRACTION)
     return fraction
+
+
+def world_light(world):
+    """What a World needs to be lit with: (constant radiance (3,) float64, EnvironmentMap or None).
+
+    Only what the scene needs: a black world (zero colour or an all-zero image) is no light at
+    all; a constant world or a constant image (e.g. 1 x 1) is a constant radiance that BSDF
+    sampling covers, with no table; only a varying image builds an EnvironmentMap.
+    """
+    scale = np.asarray(world.color, np.float64).reshape(3)
+    image = getattr(world, "image", None)
+    if image is None:
+        return scale.copy(), None
+    image = _as_image(image)
+    lo, hi = image.min(axis=(0, 1)), image.max(axis=(0, 1))  # reductions: no image-sized temporaries
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise EmberError("The environment image contains NaN or infinite pixels.")
+    if not np.any(scale != 0) or not (np.any(lo != 0) or np.any(hi != 0)):
+        return np.zeros(3), None
+    if np.all(lo == hi):
+        return scale * hi.astype(np.float64), None
+    return np.zeros(3), EnvironmentMap(image, scale, world.projection, world.env_from_world)

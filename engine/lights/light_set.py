@@ -1,9 +1,12 @@
 """All emitters of a scene behind one interface: choose one by power, sample it, evaluate it.
 
-Lights are the analytic ones of `Scene.lights` (indices 0..L-1) followed by the emissive
-triangles (L..L+E-1). The constant world is not sampled (BSDF sampling covers it well);
-rays that escape the scene collect it through `escaped`. Like Cycles, light objects are not geometry: they neither occlude
-shadow rays nor stop other rays; a ray passing through one collects its emission.
+Lights are the analytic ones of `Scene.lights` (indices 0..L-1), the emissive triangles
+(L..L+E-1) and, last, the world's environment map when the world is an image that varies
+(index L+E; see environment.world_light). A constant world is not sampled (BSDF sampling
+covers it well); rays that escape the scene collect the world through `escaped`, with the
+balance heuristic against the environment's light-sampling pdf. Like Cycles, light objects
+are not geometry: they neither occlude shadow rays nor stop other rays; a ray passing through
+one collects its emission.
 Emissive triangles are ordinary (two-sided) geometry found through `light_of_prim`.
 
 Seed 000: one light per shading point, chosen with probability proportional to its power;
@@ -19,7 +22,7 @@ from ..vec import dot, max3
 
 from .. import sampling
 from ..scene import LIGHT_SUN, Lights, Materials, Mesh, World
-from . import shapes
+from . import environment, shapes
 
 
 def avg(c: np.ndarray) -> np.ndarray:
@@ -64,17 +67,23 @@ class LightSet:
         self.tri_ng = accel.ng[self.tri_prim]
         self.light_of_prim = np.full(max(mesh.n_triangles, 1), -1, np.int64)
         self.light_of_prim[self.tri_prim] = self.n_analytic + np.arange(len(self.tri_prim))
+        # World: a constant radiance (not sampled) or an environment map (sampled, last index).
+        self.world, self.env = environment.world_light(world)
+        self.world_visible = bool(world.visible)
+        # Environment power as pbrt-v4's infinite lights: pi R^2 x integral of L over the sphere.
+        env_power = [np.pi * scene_radius**2 * avg(self.env.power_integral)] if self.env is not None else []
         power = np.concatenate([shapes.analytic_power(lights, scene_radius),
-                                2.0 * np.pi * self.tri_area * avg(self.tri_Le)])
+                                2.0 * np.pi * self.tri_area * avg(self.tri_Le), env_power])
         self.count = len(power)
+        self.env_index = self.count - 1 if self.env is not None else -1
         self.select = sampling.Distribution1D(power) if self.count and power.sum() > 0 else None
-        self.delta = np.concatenate([shapes.is_delta(lights), np.zeros(len(self.tri_prim), bool)])
+        self.env_pmf = float(self.select.pmf(np.array([self.env_index]))[0]) if self.env is not None and self.select is not None else 0.0
+        self.delta = np.zeros(self.count, bool)
+        self.delta[:self.n_analytic] = shapes.is_delta(lights)
         self.kinds_present = sorted(set(lights.kind.tolist()))
         self.hittable = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind != LIGHT_SUN))
         self.suns = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind == LIGHT_SUN))
-        self.world = np.asarray(world.color, np.float64)
-        self.world_visible = bool(world.visible)
-        self.sees_escaped = bool(len(self.suns)) or bool(self.world.max() > 0)
+        self.sees_escaped = bool(len(self.suns)) or bool(self.world.max() > 0) or self.env is not None
 
     @property
     def empty(self) -> bool:
@@ -94,7 +103,13 @@ class LightSet:
         target = p + wi
         finite = np.ones(n, bool)
         index, pmf, _ = self.select.sample_discrete(u_select)
-        is_tri = index >= self.n_analytic
+        is_tri = (index >= self.n_analytic) & (index < self.n_analytic + len(self.tri_prim))
+        is_env = index == self.env_index
+        if is_env.any():
+            rows = np.flatnonzero(is_env)
+            wi[rows], Le[rows], pdf_dir[rows], _ = self.env.sample(u[rows])
+            target[rows] = p[rows] + wi[rows] * 1e30
+            finite[rows] = False
         if is_tri.any():
             rows = np.flatnonzero(is_tri)
             t = index[rows] - self.n_analytic
@@ -104,7 +119,8 @@ class LightSet:
                 p[rows], y, self.tri_ng[t], self.tri_area[t], two_sided=True)
             Le[rows] = self.tri_Le[t]
         for kind in self.kinds_present:
-            rows = np.flatnonzero(~is_tri & (self.lights.kind[np.minimum(index, max(self.n_analytic - 1, 0))] == kind))
+            rows = np.flatnonzero((index < self.n_analytic)
+                                  & (self.lights.kind[np.minimum(index, max(self.n_analytic - 1, 0))] == kind))
             if len(rows):
                 s = shapes.sample_analytic(kind, self.lights, index[rows], p[rows], u[rows])
                 wi[rows], Le[rows], pdf_dir[rows], target[rows], finite[rows] = s
@@ -137,14 +153,23 @@ class LightSet:
         return total
 
     def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray) -> np.ndarray:
-        """Radiance (N,3) for rays leaving the scene along d: suns (MIS-weighted like
-        `emission_along`) and the world (camera rays see it only if it is visible)."""
+        """Radiance (N,3) for rays leaving the scene along d: suns and the environment map
+        (MIS-weighted like `emission_along`), or the constant world (weight 1: it is never
+        light-sampled). Camera rays see the world only if it is visible."""
         total = np.zeros((len(d), 3))
         for i in self.suns.tolist():
             hit, Le, pdf_dir = shapes.sun_hit(self.lights, i, d)
             total += self._weighted(i, hit, Le, pdf_dir, pdf_bsdf, use_mis, camera)
-        if self.world.max() > 0:
-            total += np.where((~camera | self.world_visible)[:, None], self.world, 0.0)
+        seen = ~camera | self.world_visible
+        if self.env is not None:
+            Le = self.env.eval(d)
+            w = np.ones(len(d))
+            if np.any(use_mis):
+                pdf_light = self.env_pmf * self.env.pdf(d)
+                w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
+            total += np.where(seen[:, None], Le * w[:, None], 0.0)
+        elif self.world.max() > 0:
+            total += np.where(seen[:, None], self.world, 0.0)
         return total
 
     def _weighted(self, i, hit, Le, pdf_dir, pdf_bsdf, use_mis, camera):
