@@ -99,44 +99,47 @@ class Accel:
         """Closest hit along o + t d, t in (0, tmax]. o (N,3) float32 (already offset),
         d (N,3) unit float64; skip_prim (N,) primitive each ray leaves (-1 none)."""
         n = len(o)
-        prim = np.full(n, -1, np.int64)
-        t = np.full(n, np.inf)
-        b1 = np.zeros(n)
-        b2 = np.zeros(n)
-        if self._embree is not None and n:
-            o32 = np.ascontiguousarray(o, np.float32)
-            d32 = np.ascontiguousarray(d, np.float32)
-            tfar = np.full(n, 1e30, np.float32) if tmax is None else np.minimum(tmax, 1e30).astype(np.float32)
-            active = np.arange(n)
-            t_base = np.zeros(n)
-            for _ in range(3):
-                r = self._run(o32[active], d32[active], tfar[active], "INTERSECT")
-                hit_prim = r["primID"].astype(np.int64)
-                got = hit_prim >= 0
-                prim[active] = np.where(got, hit_prim, -1)
-                t[active] = np.where(got, t_base[active] + r["tfar"], np.inf)
-                b1[active] = r["u"]
-                b2[active] = r["v"]
-                if skip_prim is None:
-                    break
-                again = got & (hit_prim == skip_prim[active])
-                if not again.any():
-                    break
-                # Re-trace self-hits from just through the triangle's plane, keeping the skip.
-                idx = active[again]
-                step = r["tfar"][again].astype(np.float64)
-                through = self.ng[hit_prim[again]] * np.sign(np.einsum("ij,ij->i", d32[idx], self.ng[hit_prim[again]]))[:, None]
-                o32[idx] = offset_origin(o32[idx] + step[:, None] * d32[idx], through)
-                t_base[idx] += step
-                tfar[idx] = np.maximum(tfar[idx] - step, 0).astype(np.float32)
-                active = idx
-            prim[t == np.inf] = -1
-        if self.n_triangles == 0:
-            return Hit(prim=prim, t=t, p=np.zeros((n, 3)), b=np.zeros((n, 3)), ng=np.zeros((n, 3)))
-        safe = np.where(prim >= 0, prim, 0)
+        if self._embree is None or n == 0:
+            z = np.zeros((n, 3))
+            return Hit(prim=np.full(n, -1, np.int64), t=np.full(n, np.inf), p=z, b=z.copy(), ng=z.copy())
+        o32 = np.ascontiguousarray(o, np.float32)
+        d32 = np.ascontiguousarray(d, np.float32)
+        tfar = np.full(n, 1e30, np.float32) if tmax is None else np.minimum(tmax, 1e30).astype(np.float32)
+        r = self._run(o32, d32, tfar, "INTERSECT")
+        prim = r["primID"].astype(np.int64)
+        t = r["tfar"].astype(np.float64)
+        b1, b2 = r["u"].astype(np.float64), r["v"].astype(np.float64)
+        if skip_prim is not None:
+            self._retrace_self_hits(o32, d32, tfar, skip_prim, prim, t, b1, b2)
+        miss = prim < 0
+        t[miss] = np.inf
+        safe = np.where(miss, 0, prim)
         p = self.v0[safe] + b1[:, None] * self.e1[safe] + b2[:, None] * self.e2[safe]
-        b = np.stack([1.0 - b1 - b2, b1, b2], axis=1)
+        b = np.empty((n, 3))
+        b[:, 0], b[:, 1], b[:, 2] = 1.0 - b1 - b2, b1, b2
         return Hit(prim=prim, t=t, p=p, b=b, ng=self.ng[safe])
+
+    def _retrace_self_hits(self, o32, d32, tfar, skip_prim, prim, t, b1, b2):
+        """Rays that re-hit the triangle they leave are traced again from just through its
+        plane (in place; rare: the origin offset already avoids most)."""
+        active = np.flatnonzero((prim >= 0) & (prim == skip_prim))
+        t_base = np.zeros(len(active))
+        for _ in range(2):
+            if len(active) == 0:
+                return
+            hp = prim[active]
+            step = t[active] - t_base
+            through = self.ng[hp] * np.sign(np.einsum("ij,ij->i", d32[active], self.ng[hp]))[:, None]
+            o_new = offset_origin(o32[active] + step[:, None] * d32[active], through)
+            t_base = t[active]
+            r = self._run(o_new, d32[active], np.maximum(tfar[active] - step, 0).astype(np.float32), "INTERSECT")
+            again_prim = r["primID"].astype(np.int64)
+            prim[active] = again_prim
+            t[active] = t_base + r["tfar"]
+            b1[active], b2[active] = r["u"], r["v"]
+            keep = (again_prim >= 0) & (again_prim == skip_prim[active])
+            active, t_base, o32 = active[keep], t_base[keep], o32
+            o32[active] = o_new[keep]
 
     def occluded(self, o: np.ndarray, target: np.ndarray = None, d: np.ndarray = None,
                  dist: np.ndarray = None) -> np.ndarray:

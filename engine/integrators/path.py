@@ -83,13 +83,13 @@ class PathTracer:
             if missed.any() and self.lights.sees_escaped:
                 r = np.flatnonzero(missed)
                 L[idx[r]] += beta[r] * self.lights.escaped(d[r], pdf_prev[r], ~no_mis[r], camera_ray[r])
-            keep = ~missed
+            keep = np.flatnonzero(~missed)
+            if len(keep) == 0:
+                break
+            o_prev = o64  # previous vertices, indexed through `keep` where needed
             idx, beta, pdf_prev, no_mis, hit_p, hit_t, d = (
                 idx[keep], beta[keep], pdf_prev[keep], no_mis[keep], hit.p[keep], hit.t[keep], d[keep])
             prim, bary, ng = hit.prim[keep], hit.b[keep], hit.ng[keep]
-            o_prev = o64[keep]
-            if len(idx) == 0:
-                break
             mat = mesh.material[prim]
             # Emissive triangles hit by the ray.
             emits = self.emissive_material[mat]
@@ -97,7 +97,7 @@ class PathTracer:
                 r = np.flatnonzero(emits)
                 Le = self.materials.emission[mat[r]]
                 cos_l = np.abs(dot(d[r], ng[r]))
-                pdf_light = self.lights.pdf_triangle_hit(prim[r], o_prev[r], hit_t[r], cos_l)
+                pdf_light = self.lights.pdf_triangle_hit(prim[r], o_prev[keep[r]], hit_t[r], cos_l)
                 w = np.where(no_mis[r], 1.0, pdf_prev[r] / np.maximum(pdf_prev[r] + pdf_light, 1e-300))
                 L[idx[r]] += beta[r] * Le * w[:, None]
             if depth == self.max_depth:
