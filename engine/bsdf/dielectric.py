@@ -7,9 +7,11 @@ eta_rel = n(wi side) / n(wo side) for a refraction: eta when wo is outside, 1 / 
 
 Radiance scaling: camera paths carry radiance, and radiance crossing an interface scales with
 n^2, so refraction f and weight include 1 / eta_rel^2 (pbrt-v4 TransportMode::Radiance; Veach
-1997 sec. 5.2). A camera ray entering glass of eta = 1.5 gets weight (1 - F) / 2.25 before
-lobe selection. Cycles omits this factor; for closed objects with camera and lights outside
-the factors cancel along every path (enter 1/eta^2, leave eta^2), so images agree.
+1997 sec. 5.2): a camera ray refracting into glass of eta = 1.5 gets weight 1 / 2.25 (f holds
+(1 - F) / 2.25, and the lobe probability 1 - F cancels). Cycles omits this factor (its BTDF is
+Walter's as printed); for closed objects with camera and lights outside, the factors cancel
+along every path (in 1 / eta^2, out eta^2, including next-event estimation from inside), so
+images agree. They differ where a light or the camera is inside a refractive object.
 
 Fresnel: exact dielectric (fresnel.dielectric) at the microfacet normal; the lobe is chosen
 with probability F (reflect) / 1 - F (refract), as Cycles' glass (bsdf_microfacet.h
