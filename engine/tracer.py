@@ -20,7 +20,7 @@ class BatchTracer:
         self.scene = scene
         self.accel = Accel(scene.mesh)
         self.lights = LightSet(scene.lights, scene.mesh, scene.materials, scene.world, self.accel,
-                               self.accel.scene_radius)
+                               self.accel.scene_radius, s.strategy)
         self.integrator = PathTracer(scene, self.accel, self.lights)
         x0, y0, x1, y1 = s.border
         ys, xs = np.mgrid[y0:y1, x0:x1]

@@ -1,40 +1,198 @@
-"""World -> World (constant background radiance).
+"""World -> World: constant background or environment image (Cycles' mapping).
 
 As Cycles' sync_world (intern/cycles/blender/shader.cpp, 5.x): the view layer's world
 override, else the scene world; with a node tree, the World Output Surface link; without
 one, world.color at strength 1; no world -> black. The view layer's Environment toggle
 (use_sky) off disables the background shader entirely. Camera visibility comes from
-world.cycles_visibility.camera and film_transparent.
+world.cycles_visibility.camera and film_transparent (a transparent film shows the background
+black, alpha 1, for now).
+
+Supported node trees: Background (or Emission) whose Color is unlinked, or linked to an
+Environment Texture (equirectangular or mirror ball) whose Vector is unlinked (the ray
+direction) or comes through Mapping nodes from Texture Coordinate Generated/Object. The
+Mapping chain becomes World.env_from_world (Cycles' kernel/svm/mapping_util.h):
+  POINT  R S v + location     VECTOR  R S v     TEXTURE  S^-1 R^T (v - location)
+  NORMAL normalize(R S^-1 v)  with R = Rz Ry Rx (Euler XYZ, util/transform.h euler_to_transform).
+A location is dropped with a warning (it would make the lookup depend on more than the direction).
+Pixels are read with foreach_get into float32; byte images are decoded per their colour space
+(sRGB -> linear by a 256-entry table); float images are scene-linear already. The image is
+looked up nearest-pixel, which is Cycles' Closest interpolation (Linear/Cubic/Smart differ only
+below a pixel).
+Not supported, with a warning: Sky Texture (Blender's Python API cannot bake it at render
+start; the Background's own colour is used), other nodes, linked Strength, per-ray-type
+visibility.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..scene import World
+from ..scene import ENV_PROJECTIONS, World
+from ..textures import srgb_to_linear
 from .export_material import find_output, follow_link, rgb
 
+MISSING_IMAGE = (1.0, 0.0, 1.0)  # Cycles' colour for an image it cannot load (TEX_IMAGE_MISSING_*)
+_LINEAR_SPACES = {"Linear Rec.709", "scene_linear", "Non-Color"}
+_SRGB_TABLE = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
 
-def _world_color(world, warn) -> np.ndarray:
+
+def euler_xyz_matrix(rotation) -> np.ndarray:
+    """Blender/Cycles Euler XYZ rotation matrix Rz @ Ry @ Rx (3,3)."""
+    x, y, z = (float(a) for a in rotation)
+    cx, sx, cy, sy, cz, sz = np.cos(x), np.sin(x), np.cos(y), np.sin(y), np.cos(z), np.sin(z)
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def mapping_matrix(vector_type: str, rotation, scale) -> np.ndarray:
+    """The linear part (3,3) of a Mapping node of `vector_type` (see the module docstring)."""
+    R = euler_xyz_matrix(rotation)
+    s = np.asarray(scale, np.float64)
+    inv_s = np.divide(1.0, s, out=np.zeros(3), where=s != 0)  # Cycles' safe_divide
+    if vector_type in ("POINT", "VECTOR"):
+        return R @ np.diag(s)
+    if vector_type == "TEXTURE":
+        return np.diag(inv_s) @ R.T
+    return R @ np.diag(inv_s)  # NORMAL
+
+
+def image_pixels(image, warn, owner: str) -> np.ndarray:
+    """(H, W, 3) float32 scene-linear pixels of a bpy Image, rows top-down.
+
+    Read once with foreach_get into a float32 buffer (pixels[:] is ~15x slower). None if the
+    image has no pixels (missing file): the caller renders Cycles' magenta.
+    """
+    w, h = (int(v) for v in image.size)
+    channels = int(image.channels)
+    if w == 0 or h == 0 or channels == 0:
+        return None
+    buf = np.empty(w * h * channels, np.float32)
+    image.pixels.foreach_get(buf)
+    buf = buf.reshape(h, w, channels)[::-1]  # Blender rows are bottom-up
+    rgb_view = buf[:, :, :3] if channels >= 3 else buf[:, :, :1].repeat(3, axis=2)
+    pixels = np.ascontiguousarray(rgb_view)
+    if not image.is_float:
+        space = image.colorspace_settings.name
+        if space == "sRGB":
+            # Byte values are k / 255 exactly: decode through the table.
+            index = np.rint(pixels * 255.0).astype(np.uint8)
+            pixels = _SRGB_TABLE[index]
+        elif space not in _LINEAR_SPACES:
+            warn(f"{owner}: image '{image.name}' is in colour space '{space}', which Ember does "
+                 "not convert; its values are used as linear.")
+    bad = ~np.isfinite(pixels)
+    if bad.any():
+        warn(f"{owner}: image '{image.name}' has {int(bad.sum())} NaN or infinite values; "
+             "they are rendered as 0.")
+        pixels[bad] = 0.0
+    return pixels
+
+
+def _source(socket):
+    """(node, output socket name) feeding `socket` through reroutes, or (None, "")."""
+    node = follow_link(socket)
+    if node is None:
+        return None, ""
+    link = socket.links[0]
+    while link.from_node.bl_idname == "NodeReroute":
+        link = link.from_node.inputs[0].links[0]
+    return node, link.from_socket.name
+
+
+def _env_from_world(node, warn, owner: str) -> np.ndarray:
+    """Follow the Environment Texture's Vector input back to the ray direction; returns the
+    linear map (3,3) applied to the direction, identity if unsupported (with a warning)."""
+    A = np.eye(3)
+    socket = node.inputs["Vector"]
+    for _ in range(64):
+        src, out_name = _source(socket)
+        if src is None:
+            return A
+        if src.mute and src.inputs:  # a muted node passes its first input through
+            socket = src.inputs[0]
+            continue
+        if src.bl_idname == "ShaderNodeMapping":
+            loc, rot, scl = (src.inputs.get(k) for k in ("Location", "Rotation", "Scale"))  # no Location: VECTOR, NORMAL
+            linked = [s.name for s in (loc, rot, scl) if s is not None and s.is_linked and getattr(s, "enabled", True)]
+            if linked:
+                warn(f"{owner}: linked {', '.join(linked)} of Mapping node '{src.name}' is not "
+                     "supported; its unlinked value is used.")
+            if loc is not None and src.vector_type in ("POINT", "TEXTURE") and any(abs(v) > 0 for v in loc.default_value):
+                warn(f"{owner}: the Location of Mapping node '{src.name}' is ignored (the "
+                     "environment depends only on the direction).")
+            A = A @ mapping_matrix(src.vector_type, rot.default_value, scl.default_value)
+            socket = src.inputs["Vector"]
+            if not socket.is_linked:
+                warn(f"{owner}: Mapping node '{src.name}' has no input vector; the ray direction "
+                     "is used.")
+                return A
+            continue
+        if src.bl_idname == "ShaderNodeTexCoord" and out_name in ("Generated", "Object"):
+            if out_name == "Object" and src.object is not None:
+                warn(f"{owner}: Texture Coordinate '{src.name}' uses object '{src.object.name}'; "
+                     "its transform is ignored.")
+            return A
+        warn(f"{owner}: the environment's vector comes from '{src.name}' ({src.bl_label}"
+             f"{' ' + out_name if out_name else ''}), which is not supported; the ray direction is used.")
+        return A
+    return A
+
+
+def _environment(node, warn, owner: str) -> dict:
+    """World fields for an Environment Texture node: image, projection, env_from_world; a
+    missing image gives Cycles' magenta as a constant colour."""
+    if node.projection not in ENV_PROJECTIONS:
+        warn(f"{owner}: environment projection '{node.projection}' is not supported; "
+             "equirectangular is used.")
+    projection = node.projection if node.projection in ENV_PROJECTIONS else "EQUIRECTANGULAR"
+    image = node.image
+    pixels = image_pixels(image, warn, owner) if image is not None else None
+    if pixels is None:
+        what = f"image '{image.name}' could not be loaded" if image is not None else "has no image"
+        warn(f"{owner}: Environment Texture '{node.name}' {what}; rendered magenta, as Cycles does.")
+        return dict(tint=np.array(MISSING_IMAGE))
+    tm = node.texture_mapping
+    if (any(abs(v) > 0 for v in tm.translation) or any(abs(v) > 0 for v in tm.rotation)
+            or any(abs(v - 1) > 0 for v in tm.scale)):
+        warn(f"{owner}: the texture mapping of '{node.name}' is ignored; use a Mapping node.")
+    return dict(image=pixels, projection=projection, env_from_world=_env_from_world(node, warn, owner))
+
+
+def _world_fields(world, warn) -> dict:
+    """color plus, for an environment, image/projection/env_from_world."""
     tree = world.node_tree
+    owner = f"World '{world.name}'"
     if tree is None:
-        return np.array(world.color[:3], np.float64)
+        return dict(color=np.array(world.color[:3], np.float64))
     out = find_output(tree, "ShaderNodeOutputWorld")
     if out is None:
-        warn(f"World '{world.name}': no World Output node; the background is black.")
-        return np.zeros(3)
+        warn(f"{owner}: no World Output node; the background is black.")
+        return dict(color=np.zeros(3))
     node = follow_link(out.inputs["Surface"])
     if node is None:
-        return np.zeros(3)
+        return dict(color=np.zeros(3))
     if node.bl_idname not in ("ShaderNodeBackground", "ShaderNodeEmission") or node.mute:
-        warn(f"World '{world.name}': node '{node.name}' ({node.bl_label}) is not supported yet; "
+        warn(f"{owner}: node '{node.name}' ({node.bl_label}) is not supported yet; "
              "the background is black.")
-        return np.zeros(3)
+        return dict(color=np.zeros(3))
     col, stre = node.inputs["Color"], node.inputs["Strength"]
-    linked = [s.name for s in (col, stre) if s.is_linked]
-    if linked:
-        warn(f"World '{world.name}': the {', '.join(linked)} input of '{node.name}' is linked "
-             "(textures are not supported yet); using its unlinked value.")
-    return np.array(rgb(col), np.float64) * float(stre.default_value)
+    if stre.is_linked:
+        warn(f"{owner}: the Strength input of '{node.name}' is linked (not supported); using its "
+             "unlinked value.")
+    strength = float(stre.default_value)
+    src = follow_link(col) if col.is_linked else None
+    if src is not None and src.bl_idname == "ShaderNodeTexEnvironment" and not src.mute:
+        env = _environment(src, warn, owner)
+        tint = env.pop("tint", np.ones(3))
+        return dict(color=tint * strength, **env)
+    if col.is_linked:
+        reason = ("Blender's Python API cannot bake a Sky Texture at render start"
+                  if src is not None and src.bl_idname == "ShaderNodeTexSky" else "not supported")
+        name = f" from '{src.name}' ({src.bl_label})" if src is not None else ""
+        warn(f"{owner}: the Color input of '{node.name}' is linked{name}: {reason}; "
+             "using its unlinked value.")
+    return dict(color=np.array(rgb(col), np.float64) * strength)
 
 
 def export_world(depsgraph, scene, warn) -> World:
@@ -42,9 +200,9 @@ def export_world(depsgraph, scene, warn) -> World:
     world = getattr(view_layer, "world_override", None) or scene.world
     if world is None or not getattr(view_layer, "use_sky", True):
         return World(color=np.zeros(3), visible=True)
-    color = _world_color(world, warn)
+    fields = _world_fields(world, warn)
     vis = getattr(world, "cycles_visibility", None)
     visible = bool(getattr(vis, "camera", True)) and not scene.render.film_transparent
     if vis is not None and not (vis.diffuse and vis.glossy and vis.transmission):
         warn(f"World '{world.name}': per-ray-type visibility is not supported; it lights everything.")
-    return World(color=color, visible=visible)
+    return World(visible=visible, **fields)

@@ -29,6 +29,14 @@ and L / pdf is the same for every direction of a pixel (no specks next to a hot 
 A non-orthonormal A (non-uniform scale) changes solid angles: pdf_world(d) =
 pdf_env(e) |det A| / |A d|^3.
 
+MIS compensation (Karlik et al. 2019, "MIS compensation: optimizing sampling techniques in
+multiple importance sampling"; pbrt-v4 ImageInfiniteLight's compensatedDistribution): when the
+environment is combined with BSDF sampling by MIS, the table is built from
+max(luminance - its solid-angle mean, 0) instead: BSDF sampling already covers the smooth part
+well, so light samples go to what stands out (a sun). Directions with weight 0 are left to
+BSDF sampling (their MIS weight becomes 1), so this is only valid under MIS; it is skipped when
+the map is nearly flat (its maximum within 1 % of the mean).
+
 Sources read (formulas only): blender/blender intern/cycles/kernel/camera/projection.h,
 kernel/svm/mapping_util.h, kernel/light/background.h; pbrt-v3 src/lights/infinite.cpp;
 Mitsuba 0.6 src/emitters/envmap.cpp.
@@ -40,7 +48,8 @@ import numpy as np
 from .. import sampling
 from ..errors import EmberError
 from ..scene import ENV_PROJECTIONS
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec.709 / sRGB primaries
+from ..textures import LUMINANCE  # Cycles' rgb_to_y weights (Rec. 709)
+
 _BALL_SUBSAMPLES = 8  # per axis, to estimate how much of a mirror-ball pixel lies in the ball
 _BALL_MIN_FRACTION = 1e-3  # a pixel that touches the ball is never given weight 0
 
@@ -59,11 +68,13 @@ class EnvironmentMap:
 
     image (H, W, 3) float32 linear RGB, rows top-down (kept by reference, not copied);
     scale (3,) radiance factor (Background colour x strength); projection in ENV_PROJECTIONS;
-    env_from_world (3, 3) invertible. Attributes: power_integral (3,) = integral of L over the
-    sphere (W/m^2 per channel), used for light selection.
+    env_from_world (3, 3) invertible; compensate: build the MIS-compensated table (only for
+    use with MIS, see the module docstring). Attributes: power_integral (3,) = integral of L
+    over the sphere (W/m^2 per channel), used for light selection; compensated (bool).
     """
 
-    def __init__(self, image, scale=(1.0, 1.0, 1.0), projection="EQUIRECTANGULAR", env_from_world=None):
+    def __init__(self, image, scale=(1.0, 1.0, 1.0), projection="EQUIRECTANGULAR", env_from_world=None,
+                 compensate=False):
         if projection not in ENV_PROJECTIONS:
             raise EmberError(f"Unknown environment projection {projection!r} "
                              f"(use one of {', '.join(ENV_PROJECTIONS)}).")
@@ -88,36 +99,31 @@ class EnvironmentMap:
             self._one_minus_z_top = 2.0 * np.sin(0.5 * edges[:-1]) ** 2  # 1 - cos theta_r
             self._one_plus_z_bottom = 2.0 * np.cos(0.5 * edges[1:]) ** 2  # 1 + cos theta_r+1
             self._pdf_from_uv = np.divide(1.0, 2.0 * np.pi * H * self._dz, out=np.zeros(H), where=self._dz > 0)
-            row_weight = self._dz  # proportional to the pixel's solid angle
-            col_weight = None
-            cell_solid_angle = (2.0 * np.pi / W) * self._dz[:, None]  # (H, 1)
+            solid_angle = (2.0 * np.pi / W) * self._dz[:, None]  # (H, 1): the same for a whole row
         else:
-            inside = _ball_fraction(H, W)
-            row_weight, col_weight = None, inside
-            cell_solid_angle = 16.0 / (H * W) * inside  # (H, W)
+            solid_angle = 16.0 / (H * W) * _ball_fraction(H, W)  # (H, W)
         weight = self._luminance_table()
-        if row_weight is not None:
-            weight *= row_weight.astype(np.float32)[:, None]
-        else:
-            weight *= col_weight.astype(np.float32)
+        self.compensated = compensate and _compensate(weight, solid_angle)
+        weight *= solid_angle.astype(np.float32)
         self.table = sampling.Distribution2D(weight)
         del weight
-        # Integral of L over the sphere: sum over pixels of L x solid angle (float64 sums).
-        if cell_solid_angle.shape[1] == 1:
-            row_sums = self.image.sum(axis=1, dtype=np.float64)  # (H, 3)
-            self.power_integral = self.scale * (cell_solid_angle[:, 0] @ row_sums)
+        # Integral of L over the sphere, sum of L x pixel solid angle, for light selection only
+        # (float32 BLAS products: any positive power keeps the estimator unbiased).
+        if solid_angle.shape[1] == 1:
+            per_column = solid_angle[:, 0].astype(np.float32) @ self.image.reshape(H, W * 3)
+            integral = per_column.reshape(W, 3).sum(axis=0, dtype=np.float64)
         else:
-            self.power_integral = self.scale * np.einsum("hw,hwc->c", cell_solid_angle, self.image, dtype=np.float64)
+            integral = solid_angle.astype(np.float32).reshape(H * W) @ self.image.reshape(H * W, 3)
+        self.power_integral = self.scale * integral.astype(np.float64)
 
     def _luminance_table(self) -> np.ndarray:
-        """(H, W) float32 luminance of |scale * image| (channels with scale 0 ignored)."""
+        """(H, W) float32 luminance of |scale * image| (a BLAS matrix-vector product: fast)."""
         k = (LUMINANCE * np.abs(self.scale)).astype(np.float32)
         img = self.image
-        lum = np.abs(img[:, :, 0]) * k[0]
-        for c in (1, 2):
-            if k[c] != 0:
-                lum += np.abs(img[:, :, c]) * k[c]
-        return lum
+        if img.min() < 0:  # HDRs may hold small negative values; the table takes |.|
+            img = np.abs(img)
+        H, W = self.shape
+        return (img.reshape(H * W, 3) @ k).reshape(H, W)
 
     # ---- projections (env space) -------------------------------------------------------------
     def _cell(self, e):
@@ -216,6 +222,23 @@ class EnvironmentMap:
         return t.func.nbytes + t.cdf.nbytes + t.marginal.func.nbytes + t.marginal.cdf.nbytes
 
 
+def _compensate(lum: np.ndarray, solid_angle: np.ndarray) -> bool:
+    """Replace lum (H, W) in place by max(lum - mean, 0), the mean weighted by solid_angle
+    ((H, 1) per row, or (H, W)); False (lum untouched) if the map is nearly flat."""
+    if solid_angle.shape[1] == 1:
+        total = float(solid_angle[:, 0] @ lum.sum(axis=1, dtype=np.float64))
+        sphere = float(solid_angle.sum()) * lum.shape[1]
+    else:
+        total = float(np.sum(lum * solid_angle, dtype=np.float64))
+        sphere = float(solid_angle.sum())
+    mean = total / sphere
+    if not float(lum.max()) - mean > 0.01 * mean:
+        return False
+    lum -= np.float32(mean)
+    np.maximum(lum, 0.0, out=lum)
+    return True
+
+
 def _ball_fraction(H: int, W: int) -> np.ndarray:
     """(H, W) fraction of each mirror-ball pixel inside the ball (the unit disk of X = 2u - 1,
     Z = 1 - 2y): 1 or 0 for pixels wholly inside or outside, a sub-pixel grid estimate for the
@@ -236,23 +259,25 @@ def _ball_fraction(H: int, W: int) -> np.ndarray:
     return fraction
 
 
-def world_light(world):
+def world_light(world, compensate=False):
     """What a World needs to be lit with: (constant radiance (3,) float64, EnvironmentMap or None).
 
     Only what the scene needs: a black world (zero colour or an all-zero image) is no light at
     all; a constant world or a constant image (e.g. 1 x 1) is a constant radiance that BSDF
-    sampling covers, with no table; only a varying image builds an EnvironmentMap.
+    sampling covers, with no table; only a varying image builds an EnvironmentMap (with the
+    MIS-compensated table if `compensate`).
     """
     scale = np.asarray(world.color, np.float64).reshape(3)
-    image = getattr(world, "image", None)
+    image = world.image
     if image is None:
         return scale.copy(), None
     image = _as_image(image)
-    lo, hi = image.min(axis=(0, 1)), image.max(axis=(0, 1))  # reductions: no image-sized temporaries
-    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+    lo, hi = image.min(), image.max()  # flat reductions: fast, and they propagate NaN
+    if not (np.isfinite(lo) and np.isfinite(hi)):
         raise EmberError("The environment image contains NaN or infinite pixels.")
-    if not np.any(scale != 0) or not (np.any(lo != 0) or np.any(hi != 0)):
+    if not np.any(scale != 0) or lo == hi == 0:
         return np.zeros(3), None
-    if np.all(lo == hi):
-        return scale * hi.astype(np.float64), None
-    return np.zeros(3), EnvironmentMap(image, scale, world.projection, world.env_from_world)
+    first = image[0, 0]
+    if np.array_equal(image[-1, -1], first) and np.all(image == first):  # cheap reject first
+        return scale * first.astype(np.float64), None
+    return np.zeros(3), EnvironmentMap(image, scale, world.projection, world.env_from_world, compensate)

@@ -18,8 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..vec import dot, max3
-
 from .. import sampling
 from ..scene import LIGHT_SUN, Lights, Materials, Mesh, World
 from . import environment, shapes
@@ -51,7 +49,9 @@ class LightSample:
 
 
 class LightSet:
-    def __init__(self, lights: Lights, mesh: Mesh, materials: Materials, world: World, accel, scene_radius: float):
+    def __init__(self, lights: Lights, mesh: Mesh, materials: Materials, world: World, accel, scene_radius: float,
+                 strategy: str = "mis"):
+        """strategy: Settings.strategy; under "mis" the environment's table is MIS-compensated."""
         self.lights = lights
         self.n_analytic = len(lights)
         self.scene_radius = scene_radius
@@ -68,7 +68,7 @@ class LightSet:
         self.light_of_prim = np.full(max(mesh.n_triangles, 1), -1, np.int64)
         self.light_of_prim[self.tri_prim] = self.n_analytic + np.arange(len(self.tri_prim))
         # World: a constant radiance (not sampled) or an environment map (sampled, last index).
-        self.world, self.env = environment.world_light(world)
+        self.world, self.env = environment.world_light(world, compensate=strategy == "mis")
         self.world_visible = bool(world.visible)
         # Environment power as pbrt-v4's infinite lights: pi R^2 x integral of L over the sphere.
         env_power = [np.pi * scene_radius**2 * avg(self.env.power_integral)] if self.env is not None else []
