@@ -183,7 +183,7 @@ class Materials:
 
         rows: dicts with kind, base_color, emission, name, normal_tex, normal_strength and
         `lobes`, a list of dicts with the lobe_* fields above without the prefix (missing ones
-        get defaults). Without `lobes` a row's kind decides: MAT_DIFFUSE -> one diffuse lobe
+        get defaults; `layer` counts among the material's own lobes). Without `lobes` a row's kind decides: MAT_DIFFUSE -> one diffuse lobe
         of base_color; MAT_PHONG -> one Phong lobe from `phong` = (kd, ks, n);
         MAT_EMISSION_ONLY -> none. Empty rows -> one grey diffuse material.
         slots: dicts with image, output, extension, interpolation, transform.
@@ -194,8 +194,11 @@ class Materials:
             rows = [dict(kind=MAT_DIFFUSE, base_color=(0.8, 0.8, 0.8), emission=(0, 0, 0), name="default")]
         lobes = []
         for m, r in enumerate(rows):
+            first = len(lobes)
             for lobe in _row_lobes(r):
-                lobes.append(dict(_LOBE_DEFAULTS, **lobe, material=m))
+                lobe = dict(_LOBE_DEFAULTS, **lobe, material=m)
+                lobe["layer"] = first + lobe["layer"] if lobe["layer"] >= 0 else -1
+                lobes.append(lobe)
         col = lambda k, dtype: np.array([lb[k] for lb in lobes], dtype)
         vec = lambda k: np.array([lb[k] for lb in lobes], np.float64).reshape(-1, 3)
         slots = [dict(_SLOT_DEFAULTS, **s) for s in slots]

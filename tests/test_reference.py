@@ -62,7 +62,12 @@ def rel_mse(x, ref):
     return float(np.mean((x - ref) ** 2 / (ref**2 + EPS)))
 
 
-@pytest.mark.parametrize("name,samples", [("cornell_box", 1024), ("lights", 1024)])
+@pytest.mark.parametrize("name,samples", [("cornell_box", 1024), ("lights", 1024), ("hdri", 1024),
+                                          ("env_marker", 256),
+                                          # materials (scenes/build_materials.py); the glossy box
+                                          # (32x32) needs ~1000 spp: its mirror caustics are skewed
+                                          ("cornell_glossy", 1024), ("glass_sphere", 512),
+                                          ("textured_plane", 256)])
 def test_matches_cycles_reference(name, samples):
     ref_path = ROOT / "tests" / "data" / f"{name}_cycles.exr"
     ch, header = imageio.read_exr(ref_path)

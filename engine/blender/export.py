@@ -65,7 +65,7 @@ def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
     camera = export_camera(depsgraph, scene, settings, warn)
     check()
 
-    materials = MaterialTable(warn)
+    materials = MaterialTable(warn, depsgraph.scene)
     meshes = MeshCollector(materials, warn, getattr(depsgraph.view_layer_eval, "material_override", None))
     light_rows = []
     visibility = {}  # original object pointer -> render it?

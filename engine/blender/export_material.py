@@ -1,20 +1,54 @@
-"""Materials -> one global table (Materials), first approximation.
+"""Materials -> one global table (Materials): shader nodes as lobes, textures, Phong.
 
-The active Material Output (target ALL or CYCLES) Surface link decides the kind:
-Diffuse BSDF -> MAT_DIFFUSE(Color); Emission -> MAT_EMISSION_ONLY(Color * Strength);
-Principled BSDF -> MAT_DIFFUSE(Base Color) + Emission Color * Emission Strength;
-nothing connected -> black (like Cycles); anything else, or a linked colour input
-(textures), -> grey diffuse 0.8 plus one warning per material. A material without a node
-tree uses diffuse_color (as Cycles does). Socket values are scene-linear already.
+The active Material Output (target ALL or CYCLES) Surface link is converted the way Cycles
+builds its closures (blender/blender intern/cycles/kernel/svm/closure.h):
+
+  Diffuse BSDF       Color -> diffuse (Roughness > 0, Oren-Nayar: approximated as Lambert)
+  Glossy BSDF        Color, Roughness -> GGX reflection with F = Color (no Fresnel, as Cycles);
+                     Multiscatter GGX is rendered as single-scattering GGX (slightly darker at
+                     high roughness), Beckmann / Ashikhmin-Shirley as GGX
+  Metallic BSDF      Base Color (F0), Edge Tint (F82), Roughness -> GGX conductor (F82 tint);
+                     Physical Conductor (IOR / Extinction) -> F82 with the IOR's F0
+  Glass BSDF         Color, Roughness, IOR -> dielectric, exact Fresnel, sharp at roughness 0
+  Refraction BSDF    approximated as Glass (it gains the Fresnel reflection)
+  Transparent BSDF   Color -> straight pass-through
+  Emission           Color x Strength -> emission (two-sided, as Cycles' mesh emission)
+  Mix Shader / Add Shader   weighted sums (a linked Fac: its default value, approximated)
+  Principled BSDF    as Cycles 4+: metallic F82 conductor (F0 = Base Color, F82 = Specular
+                     Tint); transmission dielectric (tint sqrt(Base Color)); dielectric
+                     specular (exact Fresnel of IOR, Specular IOR Level, Specular Tint) over a
+                     diffuse base weighted by 1 - the specular layer's albedo; Emission Color x
+                     Strength; Alpha as stochastic transparency; Normal. Coat, sheen,
+                     subsurface (-> the diffuse base), anisotropy, diffuse roughness and thin
+                     film are approximated (ignored)
+  other shader nodes the nearest supported closure: diffuse of their Color input
+
+Inputs may be constants, RGB / Value nodes, or Image Texture nodes (Color or Alpha output)
+fed by UVs: nothing (UV), Texture Coordinate UV, UV Map (the active render map) or a Mapping
+node (Point / Texture, constant inputs) on those. Normal inputs take a Normal Map node (tangent
+space) on an image. Any other input node: the socket's own value (approximated). Each material
+reports once which nodes it approximated. Socket values are scene-linear already.
+
+With scene.ember.glossy_as_phong, Glossy, Metallic and Principled reflection become Ember's
+Phong lobe (roughness r -> Beckmann alpha = r^2 -> n = 2 / alpha^2 - 2, Mitsuba's mapping).
+material.ember.model == 'PHONG' replaces the node tree with a Phong material.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..scene import MAT_DIFFUSE, MAT_EMISSION_ONLY, Materials
+from ..scene import (EXT_CLIP, EXT_EXTEND, EXT_MIRROR, EXT_REPEAT, FRESNEL_DIELECTRIC, FRESNEL_F82,
+                     FRESNEL_NONE, INTERP_CLOSEST, INTERP_LINEAR, LOBE_DIELECTRIC, LOBE_DIFFUSE,
+                     LOBE_MICROFACET, LOBE_PHONG, LOBE_TRANSPARENT, MAT_DIFFUSE, MAT_EMISSION_ONLY,
+                     MAT_NODES, MAT_PHONG, TEX_ALPHA, TEX_COLOR, Materials)
+from ..textures import LUMINANCE
 
 GREY = (0.8, 0.8, 0.8)
 DEFAULT_NAME = "default"
+CUTOFF = 1e-5  # Cycles' CLOSURE_WEIGHT_CUTOFF: lobes lighter than this are left out
+MAX_PHONG_EXPONENT = 1e6  # Phong stays accurate up to here (engine/bsdf/phong.py)
+_EXTENSIONS = {"REPEAT": EXT_REPEAT, "EXTEND": EXT_EXTEND, "CLIP": EXT_CLIP, "MIRROR": EXT_MIRROR}
+_LINEAR_SPACES = {"Non-Color", "Linear Rec.709", "Linear", "Raw", "Linear CIE-XYZ E", "Generic Data"}
 
 
 # --- node helpers (shared with lights and world) ------------------------------------------
@@ -29,91 +63,503 @@ def find_output(tree, bl_idname: str):
     return outs[0] if outs else None
 
 
-def follow_link(socket):
-    """The node feeding `socket` (through reroutes), or None if unconnected or muted."""
+def follow_socket(socket):
+    """(node, output socket) feeding `socket` through reroutes, or (None, None) if
+    unconnected or muted."""
     seen = 0
     while socket is not None and socket.is_linked and seen < 64:
         link = socket.links[0]
         if getattr(link, "is_muted", False) or not getattr(link, "is_valid", True):
-            return None
+            return None, None
         node = link.from_node
         if node.bl_idname == "NodeReroute":
             socket = node.inputs[0] if node.inputs else None
             seen += 1
             continue
-        return node
-    return None
+        return node, link.from_socket
+    return None, None
+
+
+def follow_link(socket):
+    """The node feeding `socket` (through reroutes), or None if unconnected or muted."""
+    return follow_socket(socket)[0]
 
 
 def rgb(socket) -> tuple:
     return tuple(float(c) for c in socket.default_value[:3])
 
 
-# --- material conversion ----------------------------------------------------------------
-def _grey(name, reason, warn):
-    warn(f"Material '{name}': {reason}; rendered as grey diffuse.")
-    return dict(kind=MAT_DIFFUSE, base_color=GREY, emission=(0.0, 0.0, 0.0), name=name)
+def f0_from_ior(eta: float) -> float:
+    return ((eta - 1.0) / (eta + 1.0)) ** 2
 
 
-def material_row(mat, warn) -> dict:
+def ior_from_f0(f0: float) -> float:
+    r = np.sqrt(min(max(f0, 0.0), 0.999999))
+    return float((1.0 + r) / (1.0 - r))
+
+
+def phong_exponent(roughness: float) -> float:
+    """Blender roughness -> Phong n = 2 / alpha^2 - 2 with Beckmann alpha = roughness^2,
+    at most MAX_PHONG_EXPONENT (a mirror)."""
+    alpha2 = max(float(roughness), 0.0) ** 4
+    if alpha2 * (MAX_PHONG_EXPONENT + 2.0) <= 2.0:
+        return MAX_PHONG_EXPONENT
+    return 2.0 / alpha2 - 2.0
+
+
+# --- images and texture slots -----------------------------------------------------------
+class _Textures:
+    """Images (read once per datablock) and texture slots shared by all materials."""
+
+    def __init__(self):
+        self.images: list[dict] = []
+        self.slots: list[dict] = []
+        self._image_index: dict[int, int] = {}
+        self._slot_index: dict[tuple, int] = {}
+
+    def image(self, img, note) -> int | None:
+        key = img.as_pointer()
+        if key in self._image_index:
+            return self._image_index[key]
+        w, h = (int(v) for v in img.size)
+        if w * h == 0:
+            note(f"image '{img.name}' has no pixels (missing file?)")
+            return None
+        texels = np.empty(w * h * img.channels, np.float32)
+        img.pixels.foreach_get(texels)
+        texels = texels.reshape(h, w, img.channels)
+        space = img.colorspace_settings.name
+        srgb = False
+        if space == "sRGB":
+            if img.is_float:  # Cycles converts float images to linear when it loads them
+                texels[:, :, :3] = _srgb_to_linear(texels[:, :, :3])
+            else:
+                srgb = True  # bytes: interpolated as stored, decoded after (textures.py)
+        elif space not in _LINEAR_SPACES:
+            note(f"image '{img.name}' colour space '{space}' read as linear")
+        self._image_index[key] = len(self.images)
+        self.images.append(dict(texels=texels, srgb=srgb, name=img.name))
+        return self._image_index[key]
+
+    def slot(self, image: int, output: int, extension: int, interpolation: int, transform) -> int:
+        key = (image, output, extension, interpolation, tuple(np.round(np.ravel(transform), 12)))
+        if key not in self._slot_index:
+            self._slot_index[key] = len(self.slots)
+            self.slots.append(dict(image=image, output=output, extension=extension,
+                                   interpolation=interpolation, transform=np.array(transform)))
+        return self._slot_index[key]
+
+
+def _srgb_to_linear(c):
+    return np.where(c < 0.04045, np.maximum(c, 0.0) / 12.92, ((np.maximum(c, 0.04045) + 0.055) / 1.055) ** 2.4)
+
+
+# --- one material's node tree -----------------------------------------------------------
+class _Converter:
+    """Converts one node tree into lobes, emission and a normal map, noting approximations."""
+
+    def __init__(self, mat, textures: _Textures, phong: bool):
+        self.mat = mat
+        self.textures = textures
+        self.phong = phong
+        self.lobes: list[dict] = []
+        self.emission = np.zeros(3)
+        self.normal = None  # (slot, strength)
+        self.notes: list[str] = []
+        self.base_color = None
+
+    def note(self, text: str) -> None:
+        if text not in self.notes:
+            self.notes.append(text)
+
+    # inputs ---------------------------------------------------------------------------------
+    def color(self, node, name):
+        """(constant colour (3,), texture slot or -1) of input `name`."""
+        sock = node.inputs[name]
+        src, out = follow_socket(sock)
+        if src is None:
+            return np.array(rgb(sock)), -1
+        if src.bl_idname == "ShaderNodeRGB":
+            return np.array(rgb(src.outputs[0])), -1
+        if src.bl_idname == "ShaderNodeValue":
+            return np.full(3, float(src.outputs[0].default_value)), -1
+        if src.bl_idname == "ShaderNodeTexImage":
+            slot = self.image_slot(src, out)
+            if slot is not None:
+                return np.array(rgb(sock)), slot
+            return np.array([1.0, 0.0, 1.0]), -1  # Cycles' missing-texture pink
+        self.note(f"'{src.name}' ({src.bl_label}) on {node.name}.{name} (used the input's own value)")
+        return np.array(rgb(sock)), -1
+
+    def value(self, node, name):
+        """(constant, texture slot or -1) of a float input `name`."""
+        sock = node.inputs[name]
+        src, out = follow_socket(sock)
+        if src is None:
+            return float(sock.default_value), -1
+        if src.bl_idname == "ShaderNodeValue":
+            return float(src.outputs[0].default_value), -1
+        if src.bl_idname == "ShaderNodeRGB":
+            return float(np.dot(rgb(src.outputs[0]), LUMINANCE)), -1
+        if src.bl_idname == "ShaderNodeTexImage":
+            slot = self.image_slot(src, out)
+            if slot is not None:
+                return float(sock.default_value), slot
+        else:
+            self.note(f"'{src.name}' ({src.bl_label}) on {node.name}.{name} (used the input's own value)")
+        return float(sock.default_value), -1
+
+    def constant(self, node, name) -> float:
+        """A float input used as a constant (a linked one is approximated by its own value)."""
+        v, slot = self.value(node, name)
+        if slot >= 0:
+            self.note(f"texture on {node.name}.{name} (used the input's own value)")
+        return v
+
+    def image_slot(self, tex, out) -> int | None:
+        img = tex.image
+        if img is None:
+            self.note(f"'{tex.name}' has no image (pink, as Cycles)")
+            return None
+        image = self.textures.image(img, self.note)
+        if image is None:
+            return None
+        if tex.projection != "FLAT":
+            self.note(f"'{tex.name}' projection {tex.projection} (used flat)")
+        interp = INTERP_CLOSEST if tex.interpolation == "Closest" else INTERP_LINEAR
+        if tex.interpolation not in ("Closest", "Linear"):
+            self.note(f"'{tex.name}' {tex.interpolation} interpolation (used linear)")
+        transform = self.uv_transform(tex)
+        output = TEX_ALPHA if out is not None and out.name == "Alpha" else TEX_COLOR
+        return self.textures.slot(image, output, _EXTENSIONS.get(tex.extension, EXT_REPEAT), interp, transform)
+
+    def uv_transform(self, tex) -> np.ndarray:
+        """(2,3) affine map from mesh UV to the image's lookup UV."""
+        identity = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        src, out = follow_socket(tex.inputs["Vector"])
+        if src is None:
+            return identity
+        if src.bl_idname == "ShaderNodeMapping":
+            inner, inner_out = follow_socket(src.inputs["Vector"])
+            if not self.is_uv(inner, inner_out, src):
+                return identity
+            return self.mapping(src)
+        if self.is_uv(src, out, tex):
+            return identity
+        return identity
+
+    def is_uv(self, src, out, user) -> bool:
+        if src is None:
+            return user.bl_idname == "ShaderNodeTexImage"  # an unlinked image vector is UV
+        if src.bl_idname == "ShaderNodeTexCoord" and out is not None and out.name == "UV":
+            return True
+        if src.bl_idname == "ShaderNodeUVMap":
+            if src.uv_map:
+                self.note(f"'{src.name}' UV map '{src.uv_map}' (used the active render UV map)")
+            return True
+        self.note(f"'{src.name}' ({src.bl_label}) as texture coordinates (used UV)")
+        return True
+
+    def mapping(self, node) -> np.ndarray:
+        """Mapping node (Point or Texture, constant inputs) restricted to z = 0 -> (2,3)."""
+        kind = node.vector_type
+        if kind not in ("POINT", "TEXTURE"):
+            self.note(f"'{node.name}' mapping type {kind} (ignored)")
+            return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        for name in ("Location", "Rotation", "Scale"):
+            if node.inputs[name].is_linked:
+                self.note(f"'{node.name}' linked {name} (used its own value)")
+        loc = np.array(node.inputs["Location"].default_value[:3], np.float64)
+        rot = np.array(node.inputs["Rotation"].default_value[:3], np.float64)
+        scale = np.array(node.inputs["Scale"].default_value[:3], np.float64)
+        cx, cy, cz = np.cos(rot)
+        sx, sy, sz = np.sin(rot)
+        # Euler XYZ: R = Rz Ry Rx (Blender's convention for the Mapping node).
+        Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+        Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+        Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+        M = np.eye(4)
+        if kind == "POINT":  # out = R (S in) + L
+            M[:3, :3] = Rz @ Ry @ Rx @ np.diag(scale)
+            M[:3, 3] = loc
+        else:  # TEXTURE: the inverse of POINT
+            A = Rz @ Ry @ Rx @ np.diag(scale)
+            try:
+                Ainv = np.linalg.inv(A)
+            except np.linalg.LinAlgError:
+                self.note(f"'{node.name}' singular texture mapping (ignored)")
+                return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+            M[:3, :3] = Ainv
+            M[:3, 3] = -Ainv @ loc
+        return np.array([[M[0, 0], M[0, 1], M[0, 3]], [M[1, 0], M[1, 1], M[1, 3]]])
+
+    def normal_input(self, node, name="Normal"):
+        """Record a Normal Map feeding `name` (one per material)."""
+        if name not in node.inputs:
+            return
+        src, _ = follow_socket(node.inputs[name])
+        if src is None:
+            return
+        if src.bl_idname != "ShaderNodeNormalMap":
+            self.note(f"'{src.name}' ({src.bl_label}) on {node.name}.{name} (ignored)")
+            return
+        if src.space != "TANGENT":
+            self.note(f"'{src.name}' {src.space} space (ignored)")
+            return
+        color, slot = self.color(src, "Color")
+        if slot < 0:
+            return
+        strength = self.constant(src, "Strength")
+        if self.normal is not None and self.normal != (slot, strength):
+            self.note(f"several normal maps (used the first)")
+            return
+        self.normal = (slot, strength)
+
+    # closures -------------------------------------------------------------------------------
+    def add(self, w, **lobe) -> int:
+        """Append a lobe with weight w (3,) unless negligible; its index or -1."""
+        w = np.asarray(w, np.float64)
+        if w.max() <= CUTOFF:
+            return -1
+        self.lobes.append(dict(lobe, weight=tuple(w)))
+        return len(self.lobes) - 1
+
+    def shader(self, node, w, depth=0):
+        """Add the closure of `node` (a shader node) with weight w (3,)."""
+        if node is None or w.max() <= 0:
+            return
+        if node.mute:
+            self.note(f"'{node.name}' is muted (black)")
+            return
+        if depth > 64:
+            self.note("shader nodes nested too deep")
+            return
+        kind = node.bl_idname
+        if kind == "ShaderNodeMixShader":
+            fac = float(np.clip(self.constant(node, "Fac"), 0.0, 1.0))
+            self.shader(follow_link(node.inputs[1]), w * (1.0 - fac), depth + 1)
+            self.shader(follow_link(node.inputs[2]), w * fac, depth + 1)
+        elif kind == "ShaderNodeAddShader":
+            self.shader(follow_link(node.inputs[0]), w, depth + 1)
+            self.shader(follow_link(node.inputs[1]), w, depth + 1)
+        elif kind == "ShaderNodeBsdfDiffuse":
+            color, tex = self.color(node, "Color")
+            if self.constant(node, "Roughness") > 0:
+                self.note(f"'{node.name}' Oren-Nayar roughness (rendered Lambertian)")
+            self.normal_input(node)
+            self.base_color = color if self.base_color is None else self.base_color
+            self.add(w, kind=LOBE_DIFFUSE, color=tuple(color), color_tex=tex)
+        elif kind in ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic"):
+            self.glossy(node, w)
+        elif kind == "ShaderNodeBsdfMetallic":
+            self.metallic(node, w)
+        elif kind in ("ShaderNodeBsdfGlass", "ShaderNodeBsdfRefraction"):
+            if kind == "ShaderNodeBsdfRefraction":
+                self.note(f"'{node.name}' Refraction BSDF (rendered as Glass: adds the Fresnel reflection)")
+            self.distribution(node)
+            color, tex = self.color(node, "Color")
+            rough, rtex = self.value(node, "Roughness")
+            ior = max(self.constant(node, "IOR"), 1e-5)
+            self.normal_input(node)
+            self.add(w, kind=LOBE_DIELECTRIC, color=tuple(color), color_tex=tex, tint_is_color=True,
+                     roughness=rough, roughness_tex=rtex, ior=ior)
+        elif kind == "ShaderNodeBsdfTransparent":
+            color, tex = self.color(node, "Color")
+            self.add(w, kind=LOBE_TRANSPARENT, color=tuple(color), color_tex=tex)
+        elif kind == "ShaderNodeEmission":
+            color, tex = self.color(node, "Color")
+            if tex >= 0:
+                self.note(f"texture on '{node.name}' emission (used the input's own value)")
+            self.emission += w * color * self.constant(node, "Strength")
+        elif kind == "ShaderNodeBsdfPrincipled":
+            self.principled(node, w)
+        elif kind == "ShaderNodeHoldout":
+            self.note(f"'{node.name}' Holdout (black)")
+        else:
+            self.note(f"'{node.name}' ({node.bl_label}) (rendered as diffuse)")
+            if "Color" in node.inputs:
+                color, tex = self.color(node, "Color")
+            else:
+                color, tex = np.array(GREY), -1
+            self.add(w, kind=LOBE_DIFFUSE, color=tuple(color), color_tex=tex)
+
+    def distribution(self, node):
+        dist = getattr(node, "distribution", "GGX")
+        if dist not in ("GGX", "MULTI_GGX", "SHARP"):
+            self.note(f"'{node.name}' {dist} distribution (rendered as GGX)")
+
+    def glossy(self, node, w):
+        self.distribution(node)
+        color, tex = self.color(node, "Color")
+        rough, rtex = self.value(node, "Roughness")
+        if "Anisotropy" in node.inputs and (node.inputs["Anisotropy"].is_linked or node.inputs["Anisotropy"].default_value != 0):
+            self.note(f"'{node.name}' anisotropy (rendered isotropic)")
+        self.normal_input(node)
+        if self.phong:
+            self.phong_lobe(node, w, kd=np.zeros(3), ks=color, ks_tex=tex, rough=rough, rtex=rtex)
+        else:
+            self.add(w, kind=LOBE_MICROFACET, fresnel=FRESNEL_NONE, color=tuple(color), color_tex=tex,
+                     roughness=rough, roughness_tex=rtex)
+
+    def metallic(self, node, w):
+        self.distribution(node)
+        rough, rtex = self.value(node, "Roughness")
+        self.normal_input(node)
+        if getattr(node, "fresnel_type", "F82") == "F82":
+            f0, tex = self.color(node, "Base Color")
+            tint, ttex = self.color(node, "Edge Tint")
+            if ttex >= 0:
+                self.note(f"texture on '{node.name}' Edge Tint (used the input's own value)")
+        else:
+            self.note(f"'{node.name}' physical conductor (rendered as F82 with its normal-incidence colour)")
+            n, _ = self.color(node, "IOR")
+            k, _ = self.color(node, "Extinction")
+            f0, tex = ((n - 1) ** 2 + k ** 2) / np.maximum((n + 1) ** 2 + k ** 2, 1e-12), -1
+            tint = np.ones(3)
+        f0 = np.clip(f0, 0.0, 1.0)
+        if self.phong:
+            self.phong_lobe(node, w, kd=np.zeros(3), ks=f0, ks_tex=tex, rough=rough, rtex=rtex)
+        else:
+            self.add(w, kind=LOBE_MICROFACET, fresnel=FRESNEL_F82, color=tuple(f0), color_tex=tex,
+                     tint=tuple(np.clip(tint, 0.0, 1.0)), roughness=rough, roughness_tex=rtex)
+
+    def phong_lobe(self, node, w, kd, ks, ks_tex, rough, rtex, kd_tex=-1):
+        """Phong lobe: kd may be textured (colour), ks only constant; kd + ks <= 1 enforced."""
+        if rtex >= 0:
+            self.note(f"texture on '{node.name}' roughness (Phong exponent from its own value)")
+        if ks_tex >= 0:
+            self.note(f"texture on '{node.name}' specular colour (Phong: used the input's own value)")
+        kd, ks = np.clip(kd, 0.0, None), np.clip(ks, 0.0, None)
+        scale = max(float((kd + ks).max()), 1.0)
+        if scale > 1.0:
+            self.note(f"'{node.name}' Phong kd + ks > 1 (scaled down to conserve energy)")
+        self.add(w, kind=LOBE_PHONG, color=tuple(kd / scale), color_tex=kd_tex, tint=tuple(ks / scale),
+                 exponent=phong_exponent(rough))
+
+    def principled(self, node, w):
+        """Cycles' Principled BSDF (svm/closure.h), top layer first."""
+        self.distribution(node)
+        for label, key, default in (("coat", "Coat Weight", 0.0), ("sheen", "Sheen Weight", 0.0),
+                                    ("subsurface", "Subsurface Weight", 0.0),
+                                    ("anisotropy", "Anisotropic", 0.0),
+                                    ("diffuse roughness", "Diffuse Roughness", 0.0),
+                                    ("thin film", "Thin Film Thickness", 0.0)):
+            sock = node.inputs.get(key)
+            if sock is not None and (sock.is_linked or float(sock.default_value) != default):
+                self.note(f"'{node.name}' {label} (ignored)")
+        base, btex = self.color(node, "Base Color")
+        self.base_color = base if self.base_color is None else self.base_color
+        rough, rtex = self.value(node, "Roughness")
+        metallic = float(np.clip(self.constant(node, "Metallic"), 0.0, 1.0))
+        transmission = float(np.clip(self.constant(node, "Transmission Weight"), 0.0, 1.0))
+        ior = max(self.constant(node, "IOR"), 1e-5)
+        level = max(self.constant(node, "Specular IOR Level"), 0.0)
+        spec_tint, stex = self.color(node, "Specular Tint")
+        if stex >= 0:
+            self.note(f"texture on '{node.name}' Specular Tint (used the input's own value)")
+        spec_tint = np.maximum(spec_tint, 0.0)
+        self.normal_input(node)
+        alpha, atex = self.value(node, "Alpha")
+        alpha = float(np.clip(alpha, 0.0, 1.0))
+        opacity = dict(opacity_tex=atex) if atex >= 0 else {}
+        if atex >= 0:
+            self.add(w, kind=LOBE_TRANSPARENT, color=(1.0, 1.0, 1.0), opacity_tex=atex, opacity_invert=True)
+        elif alpha < 1.0:
+            self.add(w * (1.0 - alpha), kind=LOBE_TRANSPARENT, color=(1.0, 1.0, 1.0))
+            w = w * alpha
+        ecolor, etex = self.color(node, "Emission Color")
+        if etex >= 0:
+            self.note(f"texture on '{node.name}' Emission Color (used the input's own value)")
+        self.emission += w * ecolor * self.constant(node, "Emission Strength")
+        if atex >= 0 and self.emission.max() > 0:
+            self.note(f"'{node.name}' emission under a textured Alpha (emitted in full)")
+        common = dict(roughness=rough, roughness_tex=rtex, **opacity)
+        eta = ior
+        f0 = f0_from_ior(ior)
+        if level != 0.5:  # Specular IOR Level rescales F0 and the IOR with it
+            f0 *= 2.0 * level
+            eta = ior_from_f0(f0) if f0 > 0 else 1.0
+            eta = 1.0 / eta if ior < 1.0 else eta
+        if self.phong:
+            ks = metallic * np.clip(base, 0, 1) + (1 - metallic) * (1 - transmission) * f0 * spec_tint
+            kd = (1 - metallic) * (1 - transmission) * base * (1 - f0)
+            if btex >= 0:
+                self.note(f"'{node.name}' textured base colour under Phong (specular used its own value)")
+            self.phong_lobe(node, w, kd=kd, ks=ks, ks_tex=-1, rough=rough, rtex=rtex,
+                            kd_tex=btex if metallic < 1 else -1)
+            if transmission > CUTOFF and metallic < 1:
+                self.add(w * (1 - metallic) * transmission, kind=LOBE_DIELECTRIC, color=tuple(base),
+                         color_tex=btex, color_sqrt=True, ior=ior, **common)
+            return
+        if metallic > CUTOFF:
+            self.add(w * metallic, kind=LOBE_MICROFACET, fresnel=FRESNEL_F82, color=tuple(np.clip(base, 0, 1)),
+                     color_tex=btex, tint=tuple(np.minimum(spec_tint, 1.0)), **common)
+        w = w * (1.0 - metallic)
+        if transmission > CUTOFF:
+            if not np.allclose(spec_tint, 1.0):
+                self.note(f"'{node.name}' Specular Tint on transmission (ignored)")
+            self.add(w * transmission, kind=LOBE_DIELECTRIC, color=tuple(base), color_tex=btex, color_sqrt=True,
+                     ior=ior, **common)
+        w = w * (1.0 - transmission)
+        top = -1
+        if eta != 1.0:
+            top = self.add(w, kind=LOBE_MICROFACET, fresnel=FRESNEL_DIELECTRIC, ior=eta,
+                           tint=tuple(spec_tint), **common)
+        self.add(w, kind=LOBE_DIFFUSE, color=tuple(base), color_tex=btex, layer=top, **opacity)
+
+
+def material_row(mat, textures: _Textures, warn, phong: bool = False) -> dict:
     """One Materials row for a bpy Material (evaluated or original). Warns at most once."""
     name = mat.name
+    settings = getattr(mat, "ember", None)
+    if settings is not None and getattr(settings, "model", "NODES") == "PHONG":
+        kd, ks = np.array(settings.diffuse_color[:3]), np.array(settings.specular_color[:3])
+        scale = max(float((kd + ks).max()), 1.0)
+        if scale > 1.0:
+            warn(f"Material '{name}': Phong diffuse + specular colour exceeds 1; scaled down to conserve energy.")
+        return dict(kind=MAT_PHONG, base_color=tuple(kd / scale), emission=(0, 0, 0), name=name,
+                    phong=(tuple(kd / scale), tuple(ks / scale), float(settings.exponent)))
     tree = mat.node_tree
     if tree is None:
         return dict(kind=MAT_DIFFUSE, base_color=tuple(mat.diffuse_color[:3]), emission=(0, 0, 0), name=name)
     out = find_output(tree, "ShaderNodeOutputMaterial")
     if out is None:
-        return _grey(name, "it has no Material Output node", warn)
-    node = follow_link(out.inputs["Surface"])
-    if node is None:  # Cycles: no surface shader -> black
-        return dict(kind=MAT_EMISSION_ONLY, base_color=(0, 0, 0), emission=(0, 0, 0), name=name)
-    kind = node.bl_idname
-    if node.mute:
-        return _grey(name, f"node '{node.name}' is muted", warn)
+        warn(f"Material '{name}': it has no Material Output node; rendered as grey diffuse.")
+        return dict(kind=MAT_DIFFUSE, base_color=GREY, emission=(0, 0, 0), name=name)
+    conv = _Converter(mat, textures, phong)
+    conv.shader(follow_link(out.inputs["Surface"]), np.ones(3))
+    if follow_link(out.inputs["Displacement"]) is not None:
+        conv.note("displacement (ignored)")
+    if conv.notes:
+        warn(f"Material '{name}': approximated " + "; ".join(conv.notes) + ".")
+    row = dict(kind=MAT_NODES, base_color=tuple(conv.base_color if conv.base_color is not None else (0, 0, 0)),
+               emission=tuple(conv.emission), name=name, lobes=conv.lobes)
+    if conv.normal is not None:
+        row["normal_tex"], row["normal_strength"] = conv.normal
+    if not conv.lobes:
+        row["kind"] = MAT_EMISSION_ONLY  # no BSDF: black, like Cycles without a surface shader
+    elif _is_plain_diffuse(conv.lobes) and conv.normal is None:
+        row["kind"] = MAT_DIFFUSE
+    return row
 
-    def linked_names(*sockets):
-        linked = [s.name for s in sockets if s.is_linked]
-        return linked
 
-    if kind == "ShaderNodeBsdfDiffuse":
-        linked = linked_names(node.inputs["Color"])
-        if linked:
-            return _grey(name, f"node '{node.name}' has a linked {', '.join(linked)} input (textures are not supported yet)", warn)
-        return dict(kind=MAT_DIFFUSE, base_color=rgb(node.inputs["Color"]), emission=(0, 0, 0), name=name)
-    if kind == "ShaderNodeEmission":
-        col, stre = node.inputs["Color"], node.inputs["Strength"]
-        linked = linked_names(col, stre)
-        if linked:
-            return _grey(name, f"node '{node.name}' has a linked {', '.join(linked)} input (textures are not supported yet)", warn)
-        e = np.array(rgb(col)) * float(stre.default_value)
-        return dict(kind=MAT_EMISSION_ONLY, base_color=(0, 0, 0), emission=tuple(e), name=name)
-    if kind == "ShaderNodeBsdfPrincipled":
-        inp = node.inputs
-        col, ecol, estr = inp["Base Color"], inp["Emission Color"], inp["Emission Strength"]
-        linked = linked_names(col, ecol, estr)
-        if linked:
-            return _grey(name, f"node '{node.name}' has a linked {', '.join(linked)} input (textures are not supported yet)", warn)
-        e = np.array(rgb(ecol)) * float(estr.default_value)
-        approx = [label for label, key, default in (
-            ("metallic", "Metallic", 0.0), ("transmission", "Transmission Weight", 0.0),
-            ("coat", "Coat Weight", 0.0), ("sheen", "Sheen Weight", 0.0),
-            ("subsurface", "Subsurface Weight", 0.0), ("alpha", "Alpha", 1.0))
-            if key in inp and (inp[key].is_linked or float(inp[key].default_value) != default)]
-        if approx:
-            warn(f"Material '{name}': Principled BSDF {', '.join(approx)} not supported yet; "
-                 "rendered as diffuse with its base colour.")
-        return dict(kind=MAT_DIFFUSE, base_color=rgb(col), emission=tuple(e), name=name)
-    return _grey(name, f"node '{node.name}' ({node.bl_label}) is not supported yet", warn)
+def _is_plain_diffuse(lobes) -> bool:
+    return (len(lobes) == 1 and lobes[0]["kind"] == LOBE_DIFFUSE and lobes[0].get("color_tex", -1) < 0
+            and np.allclose(lobes[0]["weight"], 1.0))
 
 
 class MaterialTable:
-    """Global material table; index(None) is the default grey material."""
+    """Global material table; index(None) is the default grey material.
 
-    def __init__(self, warn):
+    scene: the bpy Scene whose `ember.glossy_as_phong` setting applies (optional)."""
+
+    def __init__(self, warn, scene=None):
         self._warn = warn
         self._rows: list[dict] = []
         self._index: dict[int, int] = {}
         self._default = None
+        self._textures = _Textures()
+        self._phong = bool(getattr(getattr(scene, "ember", None), "glossy_as_phong", False))
 
     def index(self, mat) -> int:
         if mat is None:
@@ -125,11 +571,11 @@ class MaterialTable:
         i = self._index.get(key)
         if i is None:
             i = self._index[key] = len(self._rows)
-            self._rows.append(material_row(mat, self._warn))
+            self._rows.append(material_row(mat, self._textures, self._warn, self._phong))
         return i
 
     def __len__(self):
         return len(self._rows)
 
     def materials(self) -> Materials:
-        return Materials.make(self._rows)
+        return Materials.make(self._rows, self._textures.slots, self._textures.images)

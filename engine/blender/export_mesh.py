@@ -2,7 +2,8 @@
 
 Each distinct evaluated mesh (keyed by the evaluated mesh datablock, so objects sharing a
 mesh, collection instances and geometry-nodes instances of one geometry share it) is
-extracted once with to_mesh() + foreach_get into preallocated float32/int32 arrays.
+extracted once with to_mesh() + foreach_get into preallocated float32/int32 arrays, with
+the corner UVs of its active render UV map (zeros without one, as Cycles).
 Instances are grouped per (mesh, material slots) and transformed with NumPy in chunks:
 positions by the 4x4, corner normals by the inverse transpose (renormalised). A
 negative-determinant transform reverses the triangle winding (and the corner order) so
@@ -23,12 +24,13 @@ CHUNK_ELEMENTS = 1 << 21
 
 
 class _Proto:
-    __slots__ = ("positions", "triangles", "normals", "slot", "n_dropped")
+    __slots__ = ("positions", "triangles", "normals", "uvs", "slot", "n_dropped")
 
-    def __init__(self, positions, triangles, normals, slot, n_dropped):
+    def __init__(self, positions, triangles, normals, uvs, slot, n_dropped):
         self.positions = positions  # (V,3) float32 local
         self.triangles = triangles  # (T,3) int32, degenerate ones removed
         self.normals = normals  # (T,3,3) float32 local corner normals
+        self.uvs = uvs  # (T,3,2) float32 corner UVs
         self.slot = slot  # (T,) int32 material slot index
         self.n_dropped = n_dropped
 
@@ -120,11 +122,22 @@ def extract_mesh(ob) -> _Proto | None:
             slot = np.zeros(n_tri, np.int32)
         corner = np.empty(n_loop * 3, np.float32)
         me.corner_normals.foreach_get("vector", corner)
+        corner_uv = _corner_uvs(me, n_loop)
     finally:
         ob.to_mesh_clear()
     tris = corner_vert[loops]
     normals = corner.reshape(-1, 3)[loops]
-    return _finish_proto(pos.reshape(-1, 3), tris, normals, slot)
+    return _finish_proto(pos.reshape(-1, 3), tris, normals, corner_uv[loops], slot)
+
+
+def _corner_uvs(me, n_loop) -> np.ndarray:
+    """(n_loop, 2) float32 UVs of the active render UV map (Cycles' default "UV"), or zeros."""
+    layers = me.uv_layers
+    layer = next((uv for uv in layers if uv.active_render), None) or layers.active
+    uv = np.zeros(n_loop * 2, np.float32)
+    if layer is not None:
+        layer.uv.foreach_get("vector", uv)
+    return uv.reshape(-1, 2)
 
 
 def _sin2(e1, e2):
@@ -135,7 +148,7 @@ def _sin2(e1, e2):
     return cx * cx + cy * cy + cz * cz, (e1 * e1).sum(1) * (e2 * e2).sum(1)
 
 
-def _finish_proto(pos, tris, normals, slot) -> _Proto:
+def _finish_proto(pos, tris, normals, uvs, slot) -> _Proto:
     """Drop degenerate triangles and repair bad corner normals. pos (V,3) float32."""
     n_tri = len(tris)
     a, b, c = pos[tris[:, 0]], pos[tris[:, 1]], pos[tris[:, 2]]
@@ -151,7 +164,7 @@ def _finish_proto(pos, tris, normals, slot) -> _Proto:
         valid[unsure] = (c2u > (EPS_SIN * EPS_SIN) * l2u) & np.isfinite(c2u) & np.isfinite(l2u)
     n_dropped = int(n_tri - np.count_nonzero(valid))
     if n_dropped:
-        tris, normals, slot = tris[valid], normals[valid], slot[valid]
+        tris, normals, uvs, slot = tris[valid], normals[valid], uvs[valid], slot[valid]
         a, b, c = a[valid], b[valid], c[valid]
     # Guard against zero/non-finite corner normals: use the face normal there.
     n2 = np.einsum("ijk,ijk->ij", normals, normals)
@@ -161,7 +174,7 @@ def _finish_proto(pos, tris, normals, slot) -> _Proto:
         face = np.cross((b[ti] - a[ti]).astype(np.float64), (c[ti] - a[ti]).astype(np.float64))
         normals[ti, ci] = face / np.linalg.norm(face, axis=1)[:, None]
     return _Proto(pos, np.ascontiguousarray(tris, np.int32), np.ascontiguousarray(normals, np.float32),
-                  np.ascontiguousarray(slot, np.int32), n_dropped)
+                  np.ascontiguousarray(uvs, np.float32), np.ascontiguousarray(slot, np.int32), n_dropped)
 
 
 def _normalize_rows(v: np.ndarray) -> np.ndarray:
@@ -236,6 +249,7 @@ class MeshCollector:
         vertices = np.empty((n_vert, 3), np.float32)
         triangles = np.empty((n_tri, 3), np.int32)
         normals = np.empty((n_tri, 3, 3), np.float32)
+        uvs = np.empty((n_tri, 3, 2), np.float32)
         material = np.empty(n_tri, np.int32)
 
         default = None
@@ -252,6 +266,7 @@ class MeshCollector:
                     default = self._materials.index(None)
                 mat_local = np.full(T, default, np.int32)
             flipped_tris = proto.triangles[:, [0, 2, 1]]
+            flipped_uvs = proto.uvs[:, [0, 2, 1]]
             corners = proto.normals.reshape(-1, 3)
             chunk = max(1, CHUNK_ELEMENTS // max(V, 3 * T))
             for s in range(0, len(M), chunk):
@@ -278,9 +293,10 @@ class MeshCollector:
                     N[neg] = N[neg][:, :, [0, 2, 1]]
                 triangles[t0:t0 + k * T] = tri.reshape(-1, 3)
                 normals[t0:t0 + k * T] = N.reshape(-1, 3, 3)
+                uvs[t0:t0 + k * T] = np.where(neg[:, None, None, None], flipped_uvs[None], proto.uvs[None]).reshape(-1, 3, 2)
                 material[t0:t0 + k * T] = np.tile(mat_local, k)
                 v0 += k * V
                 t0 += k * T
         if dropped:
             self._warn(f"{dropped} zero-area triangle(s) were dropped.")
-        return Mesh(vertices=vertices, triangles=triangles, normals=normals, material=material)
+        return Mesh(vertices=vertices, triangles=triangles, normals=normals, material=material, uvs=uvs)

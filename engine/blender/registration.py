@@ -6,7 +6,7 @@ unregisters what is there).
 """
 import bpy
 
-from ...ui import panels, properties
+from ...ui import material, panels, properties
 from . import engine
 
 _registered = False
@@ -17,6 +17,7 @@ def register():
     if _registered:
         unregister()
     properties.register()
+    material.register()
     bpy.utils.register_class(engine.EmberRenderEngine)
     panels.register()
     _registered = True
@@ -27,5 +28,6 @@ def unregister():
     panels.unregister()
     if getattr(engine.EmberRenderEngine, "is_registered", False):
         bpy.utils.unregister_class(engine.EmberRenderEngine)
+    material.unregister()
     properties.unregister()
     _registered = False

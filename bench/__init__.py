@@ -1,0 +1,1 @@
+"""Speed against error: Ember's integrators and Cycles on the scenes of bench/scenes.py."""
