@@ -23,7 +23,7 @@ from . import workers
 from .errors import Cancelled, EmberError
 from .film import Film
 from .scene import FILTERS, INTEGRATORS, STRATEGIES, Scene
-from .tracer import BatchTracer
+from .tracer import BatchLayout, BatchTracer
 
 UPDATE_INTERVAL = 0.25
 
@@ -104,30 +104,32 @@ class RenderSession:
         self.scene = scene
         s = scene.settings
         self.warnings: list[str] = []
-        self.tracer = BatchTracer(scene)
-        self.accel = self.tracer.accel
-        if self.tracer.lights.empty and not self.tracer.lights.sees_escaped:
-            self.warnings.append("The scene has no lights, no emissive materials and a black world: "
-                                 "the image will be black.")
+        self.layout = BatchLayout(scene)
         self.film = Film(s.width, s.height)
         cores = s.threads or os.cpu_count() or 1
         # Worker processes pay ~1 s to start; worth it only for renders of several batches.
-        self.processes = cores if cores > 1 and self.tracer.n_batches >= 2 * cores and workers.can_spawn() else 0
+        self.processes = cores if cores > 1 and self.layout.n_batches >= 2 * cores and workers.can_spawn() else 0
+        # Embree, light tables and the integrator live where the tracing happens: here, or in
+        # each worker only (not here too: an 8k environment table is hundreds of MB).
+        self.tracer = None if self.processes else BatchTracer(scene)
+        if not _has_light(scene):
+            self.warnings.append("The scene has no lights, no emissive materials and a black world: "
+                                 "the image will be black.")
         self.build_seconds = time.perf_counter() - t0
 
     def _add(self, batch: int, L: np.ndarray) -> None:
         """Add a batch to the film, one pass segment at a time (pixels unique per segment)."""
-        n_pixels = self.tracer.n_pixels
-        k = self.tracer.batch_paths(batch)
+        n_pixels = self.layout.n_pixels
+        k = self.layout.batch_paths(batch)
         cut = 0
         while cut < len(k):
             seg_end = min(len(k), cut + n_pixels - k[cut] % n_pixels)
-            self.film.add(self.tracer.pixel[k[cut:seg_end] % n_pixels], L[cut:seg_end])
+            self.film.add(self.layout.pixel[k[cut:seg_end] % n_pixels], L[cut:seg_end])
             cut = seg_end
 
     def run(self, on_update=None, should_stop=None) -> RenderStats:
         s = self.scene.settings
-        tracer = self.tracer
+        layout = self.layout
         stop = threading.Event()
         t0 = time.perf_counter()
         if self.processes:
@@ -149,18 +151,18 @@ class RenderSession:
         noise = None
 
         def samples_done():
-            return paths_added // tracer.n_pixels
+            return paths_added // layout.n_pixels
 
         def report(pass_completed):
             nonlocal last_update
             if on_update is not None:
                 elapsed = time.perf_counter() - t0
-                on_update(Progress(samples_done(), s.samples, paths_added / tracer.total_paths, elapsed, rays,
+                on_update(Progress(samples_done(), s.samples, paths_added / layout.total_paths, elapsed, rays,
                                    rays / max(elapsed, 1e-9), pass_completed, noise, self.film))
             last_update = time.perf_counter()
 
         try:
-            while next_add < tracer.n_batches:
+            while next_add < layout.n_batches:
                 if should_stop is not None and not cancelled and should_stop():
                     cancelled = True
                     stop.set()
@@ -170,7 +172,7 @@ class RenderSession:
                 # The noise estimate needs a few passes to mean anything.
                 out_of_time |= s.noise_target > 0 and samples_done() >= 4 and noise is not None and noise <= s.noise_target
                 if not stop.is_set() and not out_of_time:
-                    while len(pending) < in_flight and submitted < tracer.n_batches:
+                    while len(pending) < in_flight and submitted < layout.n_batches:
                         pending[submit(submitted)] = submitted
                         submitted += 1
                 if not pending:
@@ -186,7 +188,7 @@ class RenderSession:
                 while next_add in finished:
                     result = finished.pop(next_add)
                     if result is None:  # cancelled mid-batch: nothing after it is added either
-                        next_add = tracer.n_batches
+                        next_add = layout.n_batches
                         break
                     L, batch_rays, batch_embree = result
                     self._add(next_add, L)
@@ -209,7 +211,7 @@ class RenderSession:
         stopped_by = ""
         if cancelled:
             stopped_by = "cancel"
-        elif paths_added < tracer.total_paths:
+        elif paths_added < layout.total_paths:
             stopped_by = "noise target" if s.noise_target > 0 and noise is not None and noise <= s.noise_target else "time limit"
         if samples_done() and noise is None:
             noise = self.film.noise()
@@ -219,6 +221,13 @@ class RenderSession:
                            processes=self.processes)
 
     def _trace_here(self, batch: int, stop: threading.Event):
-        rays0, embree0 = self.accel.rays, self.accel.embree_seconds
+        accel = self.tracer.accel
+        rays0, embree0 = accel.rays, accel.embree_seconds
         L = self.tracer.trace(batch, stop)
-        return L, self.accel.rays - rays0, self.accel.embree_seconds - embree0
+        return L, accel.rays - rays0, accel.embree_seconds - embree0
+
+
+def _has_light(scene: Scene) -> bool:
+    world = scene.world
+    return (len(scene.lights) > 0 or bool(np.any(scene.materials.emission > 0))
+            or bool(np.max(world.color) > 0 and (getattr(world, "image", None) is None or np.max(world.image) > 0)))

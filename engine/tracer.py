@@ -1,7 +1,9 @@
-"""Everything built once per render to trace batches: Embree scene, lights, integrator,
-and the batch layout (samples x border pixels in pass-major order, fixed-size batches).
+"""Work layout and batch tracing.
 
-Used in the render process and, identically, in every worker process.
+`BatchLayout`: the render's work is samples x border pixels in pass-major order, cut into
+fixed-size batches (cheap; the render process needs only this when workers trace).
+`BatchTracer`: everything built once to trace batches - Embree scene, lights, integrator -
+in the render process or, identically, in every worker process.
 """
 from __future__ import annotations
 
@@ -14,14 +16,10 @@ from .rng import Sampler
 from .scene import Scene
 
 
-class BatchTracer:
+class BatchLayout:
     def __init__(self, scene: Scene):
         s = scene.settings
-        self.scene = scene
-        self.accel = Accel(scene.mesh)
-        self.lights = LightSet(scene.lights, scene.mesh, scene.materials, scene.world, self.accel,
-                               self.accel.scene_radius, s.strategy)
-        self.integrator = PathTracer(scene, self.accel, self.lights)
+        self.batch_size = s.batch_size
         x0, y0, x1, y1 = s.border
         ys, xs = np.mgrid[y0:y1, x0:x1]
         self.px, self.py = xs.ravel(), ys.ravel()
@@ -32,12 +30,23 @@ class BatchTracer:
 
     def batch_paths(self, batch: int) -> np.ndarray:
         """Flat work indices k (pass = k // n_pixels, pixel = k % n_pixels) of a batch."""
-        b = self.scene.settings.batch_size
-        return np.arange(batch * b, min((batch + 1) * b, self.total_paths))
+        return np.arange(batch * self.batch_size, min((batch + 1) * self.batch_size, self.total_paths))
+
+
+class BatchTracer:
+    def __init__(self, scene: Scene):
+        s = scene.settings
+        self.scene = scene
+        self.layout = BatchLayout(scene)
+        self.accel = Accel(scene.mesh)
+        self.lights = LightSet(scene.lights, scene.mesh, scene.materials, scene.world, self.accel,
+                               self.accel.scene_radius, s.strategy)
+        self.integrator = PathTracer(scene, self.accel, self.lights)
 
     def trace(self, batch: int, stop=None) -> np.ndarray:
         """Radiance (N,3) of the batch's paths."""
-        k = self.batch_paths(batch)
-        j = k % self.n_pixels
-        sampler = Sampler(self.scene.settings.seed, self.pixel[j], k // self.n_pixels)
-        return self.integrator.render(sampler, self.px[j], self.py[j], stop)
+        layout = self.layout
+        k = layout.batch_paths(batch)
+        j = k % layout.n_pixels
+        sampler = Sampler(self.scene.settings.seed, layout.pixel[j], k // layout.n_pixels)
+        return self.integrator.render(sampler, layout.px[j], layout.py[j], stop)
