@@ -269,6 +269,8 @@ def _row_lobes(row: dict) -> list:
     if kind == MAT_DIFFUSE:
         return [dict(kind=LOBE_DIFFUSE, color=tuple(row.get("base_color", (0.8, 0.8, 0.8))))]
     if kind == MAT_PHONG:
+        if "phong" not in row:
+            raise EmberError(f"Phong material '{row.get('name', '')}' needs phong = (kd, ks, n).")
         kd, ks, n = row["phong"]
         return [dict(kind=LOBE_PHONG, color=tuple(kd), tint=tuple(ks), exponent=float(n))]
     return []

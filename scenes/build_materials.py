@@ -101,6 +101,18 @@ def packed_image(name, rgba, float_buffer=False, colorspace=None):
     return img
 
 
+def ember_settings(scene, **values):
+    """Set scene.ember values; registers Ember (its properties) in this process first."""
+    sys.path.insert(0, os.path.dirname(HERE))
+    from _bootstrap import load_ember
+    load_ember()
+    import ember
+    if not hasattr(scene, "ember"):
+        ember.register()
+    for key, value in values.items():
+        setattr(scene.ember, key, value)
+
+
 def box_filter(scene):
     scene.cycles.pixel_filter_type = "BOX"
 
@@ -225,8 +237,7 @@ def build_veach_mis():
     scene.name = "VeachMIS"
     base.set_output(scene, 256)
     base.black_world(scene)
-    # Ember settings as the ID properties its PropertyGroup reads (no add-on needed here).
-    scene["ember"] = {"glossy_as_phong": True, "max_depth": 1}
+    ember_settings(scene, glossy_as_phong=True, max_depth=1)
     scene.cycles.max_bounces = 0  # direct light only
     for i, (q, a) in enumerate(zip(veach.plates(), veach.ALPHAS)):
         v, t = base.triangles_from_quads(q[None], lambda c, n: True)

@@ -285,3 +285,16 @@ def test_material_panel_and_settings_register_and_unregister():
     finally:
         ember.register()
     assert hasattr(bpy.context.scene.ember, "glossy_as_phong")
+
+
+def test_veach_blend_renders_its_plates_with_phong():
+    """scenes/veach_mis.blend asks for Phong (scene.ember.glossy_as_phong) and direct light
+    only: the Glossy plates of roughness sqrt(alpha) export as n = 2 / alpha^2 - 2."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    bpy.ops.wm.open_mainfile(filepath=os.path.join(root, "scenes", "veach_mis.blend"))
+    sc, warnings = export_scene(bpy.context.evaluated_depsgraph_get())
+    m = sc.materials
+    plates = [m.names.index(f"Plate{i}") for i in range(4)]
+    assert m.lobe_kind[plates].tolist() == [S.LOBE_PHONG] * 4
+    np.testing.assert_allclose(m.lobe_exponent[plates], [19998, 798, 198, 30], rtol=1e-5)
+    assert sc.settings.max_depth == 1 and warnings == []

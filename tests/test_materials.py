@@ -213,6 +213,25 @@ def test_closure_estimator_is_unbiased_with_delta_lobes(case):
     assert np.all(np.abs(z) < st.norm.ppf(1 - sidak_alpha(ALPHA, 6) / 2)), z
 
 
+def test_total_internal_reflection_inside_glass():
+    """wo inside the glass (behind the winding normal), 60 deg from the normal, beyond the
+    critical angle asin(1 / 1.5) = 41.8 deg: the smooth interface reflects every sample with
+    weight 1 (F = 1); the rough one returns finite weights only."""
+    wo = [np.sin(np.radians(60)), 0.0, -np.cos(np.radians(60))]
+    glass = dict(kind=LOBE_DIELECTRIC, color=(1, 1, 1), tint=(1, 1, 1), ior=1.5)
+    c = _closure([dict(glass, roughness=0.0)], wo, 1000)
+    assert c.inside.all()
+    s = c.sample(RNG.random((1000, 2)), RNG.random(1000))
+    assert s.delta.all() and s.valid.all()
+    np.testing.assert_allclose(s.weight, 1.0, rtol=1e-12)
+    np.testing.assert_allclose(s.wi, np.tile([-wo[0], 0.0, wo[2]], (1000, 1)), atol=1e-12)  # the mirror image, inside
+    c = _closure([dict(glass, roughness=0.2)], wo, 20000)
+    s = c.sample(RNG.random((20000, 2)), RNG.random(20000))
+    assert np.all(np.isfinite(s.weight)) and np.all(np.isfinite(s.pdf)) and s.valid.mean() > 0.9
+    # Tilted microfacets let a few samples out; most reflect back inside.
+    assert np.mean(s.wi[s.valid, 2] < 0) > 0.95
+
+
 def test_phong_samples_under_the_surface_get_zero():
     """Grazing wo and n = 30: many glossy samples fall under the surface; they keep weight 0
     (no redraw), and the delta-free closure reports them invalid."""

@@ -48,6 +48,7 @@ DEFAULT_NAME = "default"
 CUTOFF = 1e-5  # Cycles' CLOSURE_WEIGHT_CUTOFF: lobes lighter than this are left out
 MAX_PHONG_EXPONENT = 1e6  # Phong stays accurate up to here (engine/bsdf/phong.py)
 _EXTENSIONS = {"REPEAT": EXT_REPEAT, "EXTEND": EXT_EXTEND, "CLIP": EXT_CLIP, "MIRROR": EXT_MIRROR}
+_IDENTITY_UV = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 _LINEAR_SPACES = {"Non-Color", "Linear Rec.709", "Linear", "Raw", "Linear CIE-XYZ E", "Generic Data"}
 
 
@@ -235,37 +236,31 @@ class _Converter:
 
     def uv_transform(self, tex) -> np.ndarray:
         """(2,3) affine map from mesh UV to the image's lookup UV."""
-        identity = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
         src, out = follow_socket(tex.inputs["Vector"])
-        if src is None:
-            return identity
-        if src.bl_idname == "ShaderNodeMapping":
-            inner, inner_out = follow_socket(src.inputs["Vector"])
-            if not self.is_uv(inner, inner_out, src):
-                return identity
+        if src is not None and src.bl_idname == "ShaderNodeMapping":
+            self.check_uv_source(*follow_socket(src.inputs["Vector"]), node=src)
             return self.mapping(src)
-        if self.is_uv(src, out, tex):
-            return identity
-        return identity
+        if src is not None:
+            self.check_uv_source(src, out, node=tex)
+        return _IDENTITY_UV
 
-    def is_uv(self, src, out, user) -> bool:
+    def check_uv_source(self, src, out, node) -> None:
+        """Note texture coordinates other than the active render UV map (used instead)."""
         if src is None:
-            return user.bl_idname == "ShaderNodeTexImage"  # an unlinked image vector is UV
-        if src.bl_idname == "ShaderNodeTexCoord" and out is not None and out.name == "UV":
-            return True
-        if src.bl_idname == "ShaderNodeUVMap":
+            if node.bl_idname == "ShaderNodeMapping":  # an unlinked Mapping vector is (0, 0, 0)
+                self.note(f"'{node.name}' without input coordinates (used UV)")
+        elif src.bl_idname == "ShaderNodeUVMap":
             if src.uv_map:
                 self.note(f"'{src.name}' UV map '{src.uv_map}' (used the active render UV map)")
-            return True
-        self.note(f"'{src.name}' ({src.bl_label}) as texture coordinates (used UV)")
-        return True
+        elif not (src.bl_idname == "ShaderNodeTexCoord" and out is not None and out.name == "UV"):
+            self.note(f"'{src.name}' ({src.bl_label}) as texture coordinates (used UV)")
 
     def mapping(self, node) -> np.ndarray:
         """Mapping node (Point or Texture, constant inputs) restricted to z = 0 -> (2,3)."""
         kind = node.vector_type
         if kind not in ("POINT", "TEXTURE"):
             self.note(f"'{node.name}' mapping type {kind} (ignored)")
-            return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+            return _IDENTITY_UV
         for name in ("Location", "Rotation", "Scale"):
             if node.inputs[name].is_linked:
                 self.note(f"'{node.name}' linked {name} (used its own value)")
@@ -288,7 +283,7 @@ class _Converter:
                 Ainv = np.linalg.inv(A)
             except np.linalg.LinAlgError:
                 self.note(f"'{node.name}' singular texture mapping (ignored)")
-                return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+                return _IDENTITY_UV
             M[:3, :3] = Ainv
             M[:3, 3] = -Ainv @ loc
         return np.array([[M[0, 0], M[0, 1], M[0, 3]], [M[1, 0], M[1, 1], M[1, 3]]])
@@ -311,7 +306,7 @@ class _Converter:
             return
         strength = self.constant(src, "Strength")
         if self.normal is not None and self.normal != (slot, strength):
-            self.note(f"several normal maps (used the first)")
+            self.note("several normal maps (used the first)")
             return
         self.normal = (slot, strength)
 

@@ -31,7 +31,7 @@ from .. import sampling, textures
 from ..scene import (FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET,
                      LOBE_PHONG, LOBE_TRANSPARENT, Scene)
 from ..vec import dot, max3, normalize
-from . import dielectric, fresnel, layering, microfacet, phong
+from . import dielectric, diffuse, fresnel, layering, microfacet, phong
 
 # Smallest lobe-selection estimate, relative to the lobe's weight: a lobe whose albedo
 # estimate is 0 at wo (e.g. Schlick with f0 = 0 at normal incidence) keeps a chance.
@@ -236,9 +236,8 @@ class Closure:
         kind = self.pair_kind[pairs]
         r = np.flatnonzero(kind == LOBE_DIFFUSE)
         if len(r):
-            up = (wi[r, 2] > 0)[:, None]
-            f[r] = np.where(up, self.color[pairs[r]] / np.pi, 0.0)
-            pdf[r] = sampling.pdf_cosine_hemisphere(wi[r, 2])
+            f[r] = diffuse.eval(self.color[pairs[r]], wi[r, 2])
+            pdf[r] = diffuse.pdf(wi[r, 2])
         r = np.flatnonzero(kind == LOBE_PHONG)
         if len(r):
             p = pairs[r]
@@ -335,7 +334,7 @@ class Closure:
         uu = u[live]
 
         r = np.flatnonzero(kind == LOBE_DIFFUSE)
-        wi_local[r] = sampling.sample_cosine_hemisphere(uu[r])
+        wi_local[r] = diffuse.sample(uu[r])
         kept[r] = wi_local[r, 2] > 0
         r = np.flatnonzero(kind == LOBE_PHONG)
         if len(r):
