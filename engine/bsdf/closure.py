@@ -405,6 +405,58 @@ class Closure:
         return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=delta, valid=valid)
 
 
+def plain_lambert_albedo(m) -> np.ndarray:
+    """(M,3) albedo of materials that are one untextured diffuse lobe (no normal map, no
+    layering) or have no lobe at all (black, e.g. pure emitters), NaN for every other material."""
+    n_mat = len(m.kind)
+    count = np.bincount(m.lobe_material, minlength=n_mat)
+    first = np.searchsorted(m.lobe_material, np.arange(n_mat))
+    lobe = np.minimum(first, max(len(m.lobe_kind) - 1, 0))
+    if len(m.lobe_kind) == 0:
+        return np.where((m.normal_tex < 0)[:, None], 0.0, np.nan) * np.ones((n_mat, 3))
+    plain = ((count == 1) & (m.lobe_kind[lobe] == LOBE_DIFFUSE) & (m.lobe_color_tex[lobe] < 0)
+             & (m.lobe_roughness_tex[lobe] < 0) & (m.lobe_opacity_tex[lobe] < 0) & ~m.lobe_color_sqrt[lobe]
+             & (m.lobe_layer[lobe] < 0) & (m.normal_tex < 0))
+    albedo = np.where((count == 1)[:, None], m.lobe_weight[lobe] * m.lobe_color[lobe], 0.0)
+    black = (count == 0) & (m.normal_tex < 0)
+    return np.where((plain | black)[:, None], albedo, np.nan)
+
+
+class LambertClosure:
+    """The closure of a batch whose points all have a plain Lambertian material: the same
+    BSDF as `Closure` gives them (one diffuse lobe, chosen with probability 1), without the
+    lobe table - the most common case, about half the cost of a bounce otherwise."""
+
+    def __init__(self, albedo: np.ndarray, ns: np.ndarray, ng: np.ndarray):
+        self.ns, self.ng = ns, ng
+        self.albedo = albedo
+        self.reflectance = albedo
+        self.has_smooth = max3(albedo) > 0
+        self.t, self.b = sampling.frame_from_z(ns)
+
+    def eval(self, wi: np.ndarray, rows: np.ndarray):
+        cos_i = np.where(dot(wi, self.ng[rows]) > 0, dot(wi, self.ns[rows]), 0.0)
+        return diffuse.eval(self.albedo[rows], cos_i), diffuse.pdf(cos_i)
+
+    def sample(self, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
+        local = diffuse.sample(u)
+        wi = sampling.to_world(local, self.t, self.b, self.ns)
+        ok = (dot(wi, self.ng) > 0) & (local[:, 2] > 0) & self.has_smooth
+        # f cos / pdf = albedo for cosine-weighted sampling of a Lambertian lobe.
+        weight = np.where(ok[:, None], self.albedo, 0.0)
+        pdf = np.where(ok, diffuse.pdf(local[:, 2]), 0.0)
+        return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=np.zeros(len(ok), bool), valid=ok)
+
+
+def make_closure(scene: Scene, lambert_albedo: np.ndarray, mat, ns, ng, wo, prim, bary):
+    """LambertClosure when every point's material is plain Lambertian, else the general Closure.
+    lambert_albedo: plain_lambert_albedo(scene.materials), computed once per render."""
+    albedo = lambert_albedo[mat]
+    if not np.isnan(albedo).any():
+        return LambertClosure(albedo, ns, ng)
+    return Closure(scene, mat, ns, ng, wo, prim, bary)
+
+
 def _valid_reflection_normal(ng: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Shading normals (K,3) tilted toward ng just enough that the mirror direction of wo stays
     min(0.9 wo.ng, 0.01) above the surface (Cycles bsdf_util.h ensure_valid_specular_reflection:

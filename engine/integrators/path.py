@@ -23,7 +23,7 @@ from ..vec import dot, length, max3
 
 from .. import camera as camera_mod
 from ..accel import Accel, offset_origin
-from ..bsdf.closure import Closure
+from ..bsdf.closure import make_closure, plain_lambert_albedo
 from ..errors import Cancelled
 from ..lights.light_set import LightSet
 from ..scene import Scene
@@ -45,6 +45,7 @@ class PathTracer:
         self.lights = lights
         self.materials = scene.materials
         self.emissive_material = scene.materials.emission.mean(axis=1) > 0
+        self.lambert_albedo = plain_lambert_albedo(scene.materials)
         self.max_depth = scene.settings.max_depth
         self.rr_depth = scene.settings.rr_depth
         strategy = scene.settings.strategy
@@ -111,7 +112,7 @@ class PathTracer:
             ns_len = length(ns)[:, None]
             ns = np.where(ns_len > 1e-12, ns / np.maximum(ns_len, 1e-300), ng) * side
             ns = np.where((dot(ns, ng_f) > 0)[:, None], ns, ng_f)
-            bsdf = Closure(s, mat, ns, ng_f, wo, prim, bary)
+            bsdf = make_closure(s, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary)
             ns = bsdf.ns  # may be perturbed (normal maps)
             albedo = max3(bsdf.reflectance)
             q = np.minimum(1.0, albedo) if depth >= self.rr_depth else np.ones(len(idx))

@@ -1,0 +1,58 @@
+"""The Lambert fast path gives exactly what the general lobe-table closure gives."""
+import numpy as np
+
+from ember.engine.bsdf.closure import Closure, LambertClosure, make_closure, plain_lambert_albedo
+from ember.engine.scene import MAT_DIFFUSE, MAT_EMISSION_ONLY, Materials
+
+from core_scenes import furnace_box
+
+
+def _points(n, rng):
+    ns = rng.normal(size=(n, 3))
+    ns /= np.linalg.norm(ns, axis=1, keepdims=True)
+    ng = ns + 0.2 * rng.normal(size=(n, 3))
+    ng /= np.linalg.norm(ng, axis=1, keepdims=True)
+    ng *= np.sign(np.einsum("ij,ij->i", ng, ns))[:, None]
+    wo = ng + rng.normal(size=(n, 3))
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    flip = np.einsum("ij,ij->i", wo, ng) < 0
+    wo[flip] *= -1
+    return ns, ng, wo
+
+
+def test_lambert_fast_path_equals_general_closure():
+    rng = np.random.default_rng(4)
+    scene = furnace_box()
+    mats = Materials.make([dict(kind=MAT_DIFFUSE, base_color=(0.2, 0.5, 0.9)),
+                           dict(kind=MAT_DIFFUSE, base_color=(0.7, 0.7, 0.1))])
+    scene = scene.replace(materials=mats)
+    n = 5000
+    mat = rng.integers(0, 2, n)
+    ns, ng, wo = _points(n, rng)
+    prim, bary = np.zeros(n, np.int64), np.full((n, 3), 1 / 3)
+    fast = make_closure(scene, plain_lambert_albedo(mats), mat, ns, ng, wo, prim, bary)
+    slow = Closure(scene, mat, ns, ng, wo, prim, bary)
+    assert isinstance(fast, LambertClosure)
+    u, u_lobe = rng.random((n, 2)), rng.random(n)
+    a, b = fast.sample(u, u_lobe), slow.sample(u, u_lobe)
+    assert np.array_equal(a.valid, b.valid)
+    v = a.valid
+    assert np.allclose(a.wi[v], b.wi[v], rtol=0, atol=1e-12)
+    assert np.allclose(a.weight[v], b.weight[v], rtol=1e-12) and np.allclose(a.pdf[v], b.pdf[v], rtol=1e-12)
+    assert np.allclose(fast.reflectance, slow.reflectance) and np.array_equal(fast.has_smooth, slow.has_smooth)
+    wi = rng.normal(size=(n, 3))
+    wi /= np.linalg.norm(wi, axis=1, keepdims=True)
+    rows = np.arange(n)
+    (f1, p1), (f2, p2) = fast.eval(wi, rows), slow.eval(wi, rows)
+    assert np.allclose(f1, f2, rtol=1e-12, atol=0) and np.allclose(p1, p2, rtol=1e-12, atol=0)
+
+
+def test_textured_or_layered_materials_take_the_general_path():
+    image = dict(texels=np.full((2, 2, 4), 0.5, np.float32), name="n")
+    mats = Materials.make([dict(kind=MAT_DIFFUSE, base_color=(0.5, 0.5, 0.5)),
+                           dict(kind=MAT_DIFFUSE, base_color=(0.5, 0.5, 0.5), normal_tex=0),
+                           dict(kind=MAT_EMISSION_ONLY, emission=(1, 1, 1))],
+                          slots=[dict(image=0)], images=[image])
+    albedo = plain_lambert_albedo(mats)
+    assert np.array_equal(albedo[0], [0.5, 0.5, 0.5]) and np.isnan(albedo[1]).all()
+    assert np.array_equal(albedo[2], [0, 0, 0])  # a pure emitter is black
