@@ -335,20 +335,46 @@ def build_lights():
 SCENES = {"cornell_box": build_cornell_box, "lights": build_lights}
 
 
-def main(argv=None):
-    if argv is None:
-        argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def glossy_material(name, color, roughness):
+    """Glossy BSDF, GGX (single scattering), F = colour as in Cycles."""
+    mat = bpy.data.materials.new(name)
+    nt, out = _clear_nodes(mat)
+    g = nt.nodes.new("ShaderNodeBsdfGlossy")
+    g.distribution = "GGX"
+    g.inputs["Color"].default_value = (*color, 1.0)
+    g.inputs["Roughness"].default_value = roughness
+    nt.links.new(g.outputs["BSDF"], out.inputs["Surface"])
+    return mat
+
+
+def scene_arguments(doc, scenes):
+    """The scene builders' command line: --out DIR, --only NAME (repeatable)."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--out", default=HERE, help="output folder (default: scenes/)")
-    ap.add_argument("--only", choices=sorted(SCENES), action="append",
+    ap.add_argument("--only", choices=sorted(scenes), action="append",
                     help="build only this scene (repeatable)")
-    args = ap.parse_args(argv)
+    return ap
+
+
+def script_argv(argv=None):
+    """Arguments after `--` under `blender -b -P script --`, else the script's own."""
+    if argv is not None:
+        return argv
+    return sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+
+
+def save_scenes(scenes, args):
+    """Build each scene of `scenes` (name -> function) chosen by args.only and save it."""
     os.makedirs(args.out, exist_ok=True)
-    for name in args.only or SCENES:
-        SCENES[name]()
+    for name in args.only or scenes:
+        scenes[name]()
         path = os.path.join(os.path.abspath(args.out), name + ".blend")
         bpy.ops.wm.save_as_mainfile(filepath=path, compress=True, copy=False)
         print(f"wrote {path} ({os.path.getsize(path)} bytes)")
+
+
+def main(argv=None):
+    save_scenes(SCENES, scene_arguments(__doc__, SCENES).parse_args(script_argv(argv)))
 
 
 if __name__ == "__main__":

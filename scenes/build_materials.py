@@ -23,7 +23,6 @@ models. Images are generated here and packed into the .blend.
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -42,17 +41,6 @@ def _nodes(name):
     mat = bpy.data.materials.new(name)
     nt, out = base._clear_nodes(mat)
     return mat, nt, out
-
-
-def glossy_material(name, color, roughness):
-    """Glossy BSDF, GGX (single scattering), F = colour as in Cycles."""
-    mat, nt, out = _nodes(name)
-    g = nt.nodes.new("ShaderNodeBsdfGlossy")
-    g.distribution = "GGX"
-    g.inputs["Color"].default_value = (*color, 1.0)
-    g.inputs["Roughness"].default_value = roughness
-    nt.links.new(g.outputs["BSDF"], out.inputs["Surface"])
-    return mat
 
 
 def principled_material(name, base_color, roughness, metallic=0.0, ior=1.5, **inputs):
@@ -122,7 +110,7 @@ def build_cornell_glossy():
     scene = base.build_cornell_box()
     scene.name = "CornellGlossy"
     box_filter(scene)
-    gold = glossy_material("GoldGGX", (0.9, 0.65, 0.3), 0.3)
+    gold = base.glossy_material("GoldGGX", (0.9, 0.65, 0.3), 0.3)
     coated, _, _ = principled_material("Coated", (0.7, 0.7, 0.7), 0.2, ior=1.5)
     chrome, _, _ = principled_material("Chrome", (0.95, 0.95, 0.95), 0.0, metallic=1.0)
     for name, mat in (("ShortBlock", gold), ("TallBlock", coated)):
@@ -241,7 +229,7 @@ def build_veach_mis():
     scene.cycles.max_bounces = 0  # direct light only
     for i, (q, a) in enumerate(zip(veach.plates(), veach.ALPHAS)):
         v, t = base.triangles_from_quads(q[None], lambda c, n: True)
-        mat = glossy_material(f"Plate{i}", (veach.PLATE_REFLECTANCE,) * 3, math.sqrt(a))
+        mat = base.glossy_material(f"Plate{i}", (veach.PLATE_REFLECTANCE,) * 3, math.sqrt(a))
         base.mesh_object(scene, f"Plate{i}", v, t, mat)
     v, t = base.triangles_from_quads(np.array([veach.BACKDROP]), lambda c, n: n[1] < 0)
     backdrop = base.diffuse_material("Backdrop", (veach.BACKDROP_ALBEDO,) * 3)
@@ -259,19 +247,7 @@ SCENES = {"cornell_glossy": build_cornell_glossy, "glass_sphere": build_glass_sp
 
 
 def main(argv=None):
-    if argv is None:
-        argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default=HERE, help="output folder (default: scenes/)")
-    ap.add_argument("--only", choices=sorted(SCENES), action="append",
-                    help="build only this scene (repeatable)")
-    args = ap.parse_args(argv)
-    os.makedirs(args.out, exist_ok=True)
-    for name in args.only or SCENES:
-        SCENES[name]()
-        path = os.path.join(os.path.abspath(args.out), name + ".blend")
-        bpy.ops.wm.save_as_mainfile(filepath=path, compress=True, copy=False)
-        print(f"wrote {path} ({os.path.getsize(path)} bytes)")
+    base.save_scenes(SCENES, base.scene_arguments(__doc__, SCENES).parse_args(base.script_argv(argv)))
 
 
 if __name__ == "__main__":

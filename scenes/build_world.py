@@ -21,7 +21,6 @@ files are self-contained. Needs the bpy module or `blender -b -P scenes/build_wo
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -142,18 +141,6 @@ def environment_world(scene, image, rotation_z=0.0, strength=1.0):
     return world
 
 
-def glossy_material(name, color, roughness):
-    """Glossy BSDF (GGX) of the given colour and roughness."""
-    mat = bpy.data.materials.new(name)
-    nt, out = build._clear_nodes(mat)
-    bsdf = nt.nodes.new("ShaderNodeBsdfGlossy")
-    bsdf.distribution = "GGX"
-    bsdf.inputs["Color"].default_value = (*color, 1.0)
-    bsdf.inputs["Roughness"].default_value = roughness
-    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    return mat
-
-
 def uv_sphere(scene, name, location, radius, material):
     bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, radius=radius, location=location)
     ob = bpy.context.active_object
@@ -183,7 +170,7 @@ def build_hdri(glossy=False):
     environment_world(scene, image, HDRI_ROTATION_Z, HDRI_STRENGTH)
     ground = build.diffuse_material("Ground", (0.5, 0.5, 0.5))
     white = build.diffuse_material("White", (0.8, 0.8, 0.8))
-    blue = glossy_material("BlueGlossy", (0.3, 0.5, 0.9), 0.2) if glossy else build.diffuse_material("Blue", (0.2, 0.4, 0.8))
+    blue = build.glossy_material("BlueGlossy", (0.3, 0.5, 0.9), 0.2) if glossy else build.diffuse_material("Blue", (0.2, 0.4, 0.8))
     # The ground reaches the horizon (its far edge 0.1 deg below it), so no sharp edge between
     # the lit ground and the map's dark lower half is in view: there both renderers' values are
     # nearly noise-free and Cycles' tabulated pixel filter differs from Ember's exact one by a
@@ -220,23 +207,10 @@ SCENES = {"hdri": build_hdri, "env_marker": build_env_marker}
 
 
 def main(argv=None):
-    if argv is None:
-        argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default=HERE, help="output folder (default: scenes/)")
-    ap.add_argument("--only", choices=sorted(SCENES), action="append",
-                    help="build only this scene (repeatable)")
+    ap = build.scene_arguments(__doc__, SCENES)
     ap.add_argument("--glossy", action="store_true", help="hdri: the blue sphere is glossy (GGX 0.2)")
-    args = ap.parse_args(argv)
-    os.makedirs(args.out, exist_ok=True)
-    for name in args.only or SCENES:
-        if name == "hdri":
-            build_hdri(glossy=args.glossy)
-        else:
-            SCENES[name]()
-        path = os.path.join(os.path.abspath(args.out), name + ".blend")
-        bpy.ops.wm.save_as_mainfile(filepath=path, compress=True, copy=False)
-        print(f"wrote {path} ({os.path.getsize(path)} bytes)")
+    args = ap.parse_args(build.script_argv(argv))
+    build.save_scenes({**SCENES, "hdri": lambda: build_hdri(glossy=args.glossy)}, args)
 
 
 if __name__ == "__main__":
