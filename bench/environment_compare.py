@@ -72,7 +72,7 @@ def regions(scene):
     p = hit.p[ground]
     origin = offset_origin(np.repeat(p, len(sun_dirs), 0), np.broadcast_to([0.0, 0.0, 1.0], (len(p) * len(sun_dirs), 3)))
     dirs = np.tile(sun_dirs, (len(p), 1))
-    seen = ~accel.occluded(origin, d=dirs, dist=np.full(len(dirs), np.inf))
+    seen = ~accel.occluded(origin, origin + dirs * 1e30)
     fraction = np.full(len(px), np.nan)
     fraction[ground] = seen.reshape(len(p), len(sun_dirs)).mean(axis=1)
     fraction = fraction.reshape(s.height, s.width)

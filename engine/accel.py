@@ -3,8 +3,11 @@
 embreex fixes tnear = 0 and takes float32 rays, so robustness is ours:
 - hit points are rebuilt in float64 from barycentrics;
 - spawned origins are pushed off the surface along the geometric normal by an integer
-  number of float32 ULPs (Waechter & Binder, Ray Tracing Gems ch. 6; Cycles' ray_offset),
-  which works at any coordinate magnitude;
+  number of float32 ULPs (Waechter & Binder, Ray Tracing Gems ch. 6), which works at any
+  coordinate magnitude. Their 256 ULPs (Cycles' old ray_offset) move an origin 25 cm at
+  coordinates of 1e4 (more than the gap between a light and the ceiling it hangs under)
+  and bias the light there; since the re-trace below handles the triangle a ray leaves,
+  4 ULPs (rounded, not truncated) suffice for its coplanar neighbours (tested);
 - a ray that still re-hits the primitive it left is re-traced from just past that hit
   (Cycles' self-primitive skip), exact for planar triangles;
 - shadow rays stop short of their target (tfar = 1 - 1e-4 of the segment).
@@ -21,7 +24,7 @@ from .scene import Mesh
 
 _ORIGIN = 1.0 / 32.0
 _FLOAT_SCALE = 1.0 / 65536.0
-_INT_SCALE = 256.0
+_INT_SCALE = 4.0
 SHADOW_EPSILON = 1e-4
 
 
@@ -29,7 +32,7 @@ def offset_origin(p: np.ndarray, ng: np.ndarray) -> np.ndarray:
     """Float32 points just off the surface on the side `ng` points to. p, ng (N,3) -> (N,3) f32."""
     p32 = np.ascontiguousarray(p, dtype=np.float32)
     n32 = np.asarray(ng, dtype=np.float32)
-    of_i = (_INT_SCALE * n32).astype(np.int32)
+    of_i = np.rint(_INT_SCALE * n32).astype(np.int32)
     p_i = p32.view(np.int32) + np.where(p32 < 0, -of_i, of_i)
     p_far = p_i.view(np.float32)
     near = np.abs(p32) < _ORIGIN
@@ -141,22 +144,33 @@ class Accel:
             active, t_base, o32 = active[keep], t_base[keep], o32
             o32[active] = o_new[keep]
 
-    def occluded(self, o: np.ndarray, target: np.ndarray = None, d: np.ndarray = None,
-                 dist: np.ndarray = None) -> np.ndarray:
-        """(N,) bool: is the segment blocked. Either `target` points (N,3) (shadow ray stops
-        1e-4 of the way short of them) or unit directions `d` with distances `dist`
-        (inf for directional lights)."""
+    def occluded(self, o: np.ndarray, target: np.ndarray, skip_prim: np.ndarray = None,
+                 target_prim: np.ndarray = None) -> np.ndarray:
+        """(N,) bool: is the segment from o (N,3) to target (N,3) blocked (it stops 1e-4 of the
+        way short of the target). Embree's occlusion query cannot skip primitives, so the
+        segments it reports blocked are confirmed by a closest-hit query that skips the
+        triangle the ray leaves (skip_prim) and ignores the emitter it aims at (target_prim,
+        -1 none): at coordinates of 1e4 float32 rounding otherwise lets a few percent of shadow
+        rays hit one of those two."""
         n = len(o)
         if self._embree is None or n == 0:
             return np.zeros(n, bool)
         o32 = np.ascontiguousarray(o, np.float32)
-        if target is not None:
-            d32 = (np.asarray(target, np.float64) - o32).astype(np.float32)
-            tfar = np.full(n, 1.0 - SHADOW_EPSILON, np.float32)
-        else:
-            d32 = np.ascontiguousarray(d, np.float32)
-            tfar = np.minimum(np.where(np.isfinite(dist), dist * (1.0 - SHADOW_EPSILON), 1e30), 1e30).astype(np.float32)
-        return self._run(o32, d32, tfar, "OCCLUDED") >= 0
+        d32 = (np.asarray(target, np.float64) - o32).astype(np.float32)
+        tfar = np.full(n, 1.0 - SHADOW_EPSILON, np.float32)
+        blocked = self._run(o32, d32, tfar, "OCCLUDED") >= 0
+        rows = np.flatnonzero(blocked)
+        if len(rows) and (skip_prim is not None or target_prim is not None):
+            seg = d32[rows].astype(np.float64)
+            length = np.sqrt(seg[:, 0] ** 2 + seg[:, 1] ** 2 + seg[:, 2] ** 2)
+            unit = seg / np.where(length > 0, length, 1.0)[:, None]
+            hit = self.intersect(o32[rows], unit, length * (1.0 - SHADOW_EPSILON),
+                                 None if skip_prim is None else skip_prim[rows])
+            real = hit.prim >= 0
+            if target_prim is not None:
+                real &= hit.prim != target_prim[rows]
+            blocked[rows] = real
+        return blocked
 
 
 def _bounding_radius(v: np.ndarray) -> float:

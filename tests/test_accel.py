@@ -21,7 +21,8 @@ def _random_dirs(rng, n):
 def test_spawned_rays_never_rehit_their_triangle():
     """1000 random triangles with log-uniform coordinates in [1e-4, 1e4] x random sign; from
     a random point on each, 200 random directions leaving the side they point to must not
-    hit the triangle they leave (0 self-hits allowed)."""
+    hit the triangle they leave (0 self-hits allowed), with the self-primitive skip the
+    integrator uses."""
     rng = np.random.default_rng(7)
     self_hits = 0
     for _ in range(1000 // 50):
@@ -38,9 +39,37 @@ def test_spawned_rays_never_rehit_their_triangle():
         side = np.sign(np.einsum("ij,ij->i", d, accel.ng[prim]))[:, None]
         ok = accel.area[prim] > 0
         o = offset_origin(p, accel.ng[prim] * side)
-        hit = accel.intersect(o[ok], d[ok])
+        hit = accel.intersect(o[ok], d[ok], skip_prim=prim[ok])
         self_hits += int(np.sum(hit.prim == prim[ok]))
     assert self_hits == 0
+
+
+def test_rays_leaving_a_mesh_never_hit_its_coplanar_neighbours():
+    """A finely triangulated plane (shared edges, fan vertices) far from and near the origin:
+    rays leaving points on it - many right on the shared edges - never hit the plane again."""
+    rng = np.random.default_rng(5)
+    for offset in (0.0, 1e2, 1e4):
+        n = 40
+        g = np.linspace(-1, 1, n + 1)
+        X, Y = np.meshgrid(g, g)
+        v = np.stack([X, Y, np.zeros_like(X)], -1).reshape(-1, 3) * 3.0 + offset
+        i = np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]
+        a, b, c, d_ = i, i + 1, i + n + 2, i + n + 1
+        tris = np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d_], -1).reshape(-1, 3)])
+        mesh = Mesh(v.astype(np.float32), tris.astype(np.int32), np.zeros((len(tris), 3, 3), np.float32),
+                    np.zeros(len(tris), np.int32))
+        accel = Accel(mesh)
+        k = 200_000
+        prim = rng.integers(0, len(tris), k)
+        u = rng.random((k, 2))
+        u[: k // 2, 1] = 0.0  # half the points exactly on an edge of their triangle
+        su = np.sqrt(u[:, 0])
+        b1, b2 = su * (1 - u[:, 1]), su * u[:, 1]
+        p = accel.v0[prim] + b1[:, None] * accel.e1[prim] + b2[:, None] * accel.e2[prim]
+        d = _random_dirs(rng, k)
+        up = np.sign(d[:, 2])[:, None] * np.array([0, 0, 1.0])
+        hit = accel.intersect(offset_origin(p, up), d, skip_prim=prim)
+        assert np.sum(hit.prim >= 0) == 0, offset
 
 
 def test_shadow_rays_stop_short_of_the_target_surface():

@@ -132,7 +132,7 @@ class PathTracer:
                 if len(test):
                     rows = active[test]
                     o_shadow = offset_origin(hit_p[rows], _towards(ng_f[rows], ls.wi[test]))
-                    blocked = self.accel.occluded(o_shadow, target=ls.target[test])
+                    blocked = self.accel.occluded(o_shadow, ls.target[test], prim[rows], ls.target_prim[test])
                     L[idx[rows]] += np.where(blocked[:, None], 0.0, contrib[test])
             # BSDF sampling continues the path; Russian roulette with survival q.
             bs = bsdf.sample(sampler.get(base + 2, idx, 2), sampler.get(base + 4, idx))

@@ -44,6 +44,7 @@ class LightSample:
     pdf: np.ndarray
     delta: np.ndarray
     target: np.ndarray  # (N,3) point on the light; inf-far lights: p + wi * 1e30
+    target_prim: np.ndarray  # (N,) emissive triangle the target lies on, -1 for other lights
     finite: np.ndarray  # (N,) bool
     valid: np.ndarray
 
@@ -101,6 +102,7 @@ class LightSet:
         Le = np.zeros((n, 3))
         pdf_dir = np.zeros(n)
         target = p + wi
+        target_prim = np.full(n, -1, np.int64)
         finite = np.ones(n, bool)
         index, pmf, _ = self.select.sample_discrete(u_select)
         is_tri = (index >= self.n_analytic) & (index < self.n_analytic + len(self.tri_prim))
@@ -118,6 +120,7 @@ class LightSet:
             wi[rows], pdf_dir[rows], target[rows] = shapes.area_to_solid_angle(
                 p[rows], y, self.tri_ng[t], self.tri_area[t], two_sided=True)
             Le[rows] = self.tri_Le[t]
+            target_prim[rows] = self.tri_prim[t]
         for kind in self.kinds_present:
             rows = np.flatnonzero((index < self.n_analytic)
                                   & (self.lights.kind[np.minimum(index, max(self.n_analytic - 1, 0))] == kind))
@@ -128,7 +131,7 @@ class LightSet:
         pdf = np.where(delta, pmf, pmf * pdf_dir)
         valid = (pdf > 0) & np.isfinite(pdf) & (avg(Le) > 0)
         return LightSample(wi=wi, Le=Le, pdf=np.where(valid, pdf, 0.0), delta=delta, target=target,
-                           finite=finite, valid=valid)
+                           target_prim=target_prim, finite=finite, valid=valid)
 
     # ---- emission found by rays (BSDF sampling or camera rays) -----------------------------
     def pdf_triangle_hit(self, prim: np.ndarray, p_prev: np.ndarray, t: np.ndarray, cos_light: np.ndarray):
