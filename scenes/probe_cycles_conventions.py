@@ -33,6 +33,9 @@ import bpy  # noqa: E402
 sys.path.insert(0, ROOT)
 from _bootstrap import load_ember  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from reference import unbiased_cycles  # noqa: E402  (scenes/reference.py)
+
 load_ember()
 from ember.engine import imageio  # noqa: E402
 
@@ -50,15 +53,7 @@ def row(probe, quantity, measured, expected=None, note=""):
 def fresh(res=(16, 16)):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
-    sc.render.engine = "CYCLES"
-    c = sc.cycles
-    c.device = "CPU"
-    c.samples = SAMPLES
-    c.use_adaptive_sampling = False
-    c.use_denoising = False
-    c.sample_clamp_direct = 0.0
-    c.sample_clamp_indirect = 0.0
-    c.light_sampling_threshold = 0.0
+    unbiased_cycles(sc, SAMPLES)
     sc.render.resolution_x, sc.render.resolution_y = res
     sc.render.resolution_percentage = 100
     world = bpy.data.worlds.new("W")
