@@ -1,9 +1,10 @@
 """Peak memory of a render: render.py in a separate process per measurement.
 
-Two numbers: the render process's own peak resident set (the kernel's ru_maxrss from
-wait4), and the peak of the resident sets of its whole process tree (render process plus
-Ember's worker processes), sampled from /proc every POLL seconds (a spike shorter than that
-can be missed). A tiny render of the same .blend gives the baseline: Python, bpy, the add-on,
+Two numbers, both read from /proc every POLL seconds while it runs: the render process's
+own peak resident set (VmHWM, the kernel's high-water mark, so nothing is missed before the
+last poll; not ru_maxrss, which also counts the parent's pages shared before exec), and the
+peak of the summed resident sets of its whole process tree (render process plus Ember's
+worker processes; a spike shorter than POLL can be missed). A tiny render of the same .blend gives the baseline: Python, bpy, the add-on,
 the scene and its export, so what a resolution adds is the difference.
 """
 from __future__ import annotations
@@ -19,11 +20,11 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 POLL = 0.05
 
 
-def _rss_kib(pid: int) -> int:
+def _status_kib(pid: int, field: str = "VmRSS") -> int:
     try:
         with open(f"/proc/{pid}/status") as fh:
             for line in fh:
-                if line.startswith("VmRSS:"):
+                if line.startswith(field + ":"):
                     return int(line.split()[1])
     except OSError:
         pass
@@ -45,7 +46,7 @@ def tree_rss_kib(pid: int) -> int:
     total, stack = 0, [pid]
     while stack:
         p = stack.pop()
-        total += _rss_kib(p)
+        total += _status_kib(p)
         stack += _children(p)
     return total
 
@@ -60,20 +61,16 @@ def measure(blend, width: int, height: int, samples: int = 1) -> dict:
         t0 = time.perf_counter()
         with open(os.path.join(tmp, "stderr.txt"), "w+") as err:
             proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=err)
-            peak_tree = 0
-            while True:  # wait4, not poll(): reaping the child ourselves keeps its rusage
-                pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
-                if pid == proc.pid:
-                    break
+            peak_tree = peak_main = 0
+            while proc.poll() is None:
                 peak_tree = max(peak_tree, tree_rss_kib(proc.pid))
+                peak_main = max(peak_main, _status_kib(proc.pid, "VmHWM"))
                 time.sleep(POLL)
-            proc.returncode = os.waitstatus_to_exitcode(status)
             seconds = time.perf_counter() - t0
             err.seek(0)
             message = err.read()
     if proc.returncode:
         raise RuntimeError(f"render.py exited {proc.returncode}: {message.strip()[-300:]}")
-    main_peak = usage.ru_maxrss  # KiB on Linux
     return {"resolution": f"{width}x{height}", "samples": samples,
-            "peak_tree_mib": max(peak_tree, main_peak) / 1024, "peak_main_mib": main_peak / 1024,
+            "peak_tree_mib": max(peak_tree, peak_main) / 1024, "peak_main_mib": peak_main / 1024,
             "seconds": seconds, "load": load}

@@ -17,18 +17,16 @@ from ember.engine.metrics import EPS, rel_mse
 __all__ = ["EPS", "rel_mse", "reference_rel_mse", "rmse", "hdr_flip", "nan_count", "evaluate"]
 
 
-def reference_rel_mse(reference: np.ndarray, variance: np.ndarray, mask=None) -> float:
+def reference_rel_mse(reference: np.ndarray, variance: np.ndarray) -> float:
     """The reference's own expected relMSE from the variance of its mean (H,W,3)."""
     r = np.asarray(reference, np.float64)
-    e = np.asarray(variance, np.float64) / (r * r + EPS)
-    return float(np.mean(e[mask] if mask is not None else e))
+    return float(np.mean(np.asarray(variance, np.float64) / (r * r + EPS)))
 
 
-def rmse(image: np.ndarray, reference: np.ndarray, mask=None) -> float:
+def rmse(image: np.ndarray, reference: np.ndarray) -> float:
     """Root mean squared error, in the image's units (non-finite values count as 0)."""
     x = np.nan_to_num(np.asarray(image, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-    d = (x - np.asarray(reference, np.float64)) ** 2
-    return float(np.sqrt(np.mean(d[mask] if mask is not None else d)))
+    return float(np.sqrt(np.mean((x - np.asarray(reference, np.float64)) ** 2)))
 
 
 def _flip_input(image) -> np.ndarray:
@@ -49,13 +47,12 @@ def nan_count(image: np.ndarray) -> int:
     return int((~np.isfinite(np.asarray(image))).any(axis=-1).sum())
 
 
-def evaluate(image: np.ndarray, reference: np.ndarray, variance=None, mask=None) -> dict:
-    """All metrics of an (H,W,3) image; variance of the reference's mean (optional) gives
-    the reference's own relMSE and the corrected relMSE. mask (H,W) bool: pixels that count
-    (HDR-FLIP, a filter over the image, always sees all of them)."""
-    out = {"relmse": rel_mse(image, reference, mask), "rmse": rmse(image, reference, mask),
+def evaluate(image: np.ndarray, reference: np.ndarray, variance=None) -> dict:
+    """All metrics of an (H,W,3) image; the variance of the reference's mean (optional) gives
+    the reference's own relMSE and the corrected relMSE."""
+    out = {"relmse": rel_mse(image, reference), "rmse": rmse(image, reference),
            "flip": hdr_flip(image, reference), "nan": nan_count(image)}
     if variance is not None:
-        out["relmse_ref"] = reference_rel_mse(reference, variance, mask)
+        out["relmse_ref"] = reference_rel_mse(reference, variance)
         out["relmse_corrected"] = out["relmse"] - out["relmse_ref"]
     return out

@@ -25,14 +25,15 @@ def _unit(v):
 
 
 def make_rays(scene, size: int = 256, seed: int = 0):
-    """{"camera"|"bounce"|"shadow": (origins, directions, tfar, query)} as embreex wants them."""
+    """((Embree scene, its device), {"camera"|"bounce"|"shadow": (origins, directions, tfar,
+    query)}) as embreex wants them."""
     from embreex import rtcore_scene as rtcs  # noqa: F401  (fail early if missing)
     rng = np.random.default_rng(seed)
     mesh = scene.mesh
     settings = scene.settings.replace(width=size, height=size, border=(0, 0, size, size))
     py, px = np.divmod(np.arange(size * size), size)
     o, d, tmax = camera_mod.generate_rays(scene.camera, settings, px, py, rng.random((size * size, 2)))
-    es = embree_scene(mesh)
+    es, device = embree_scene(mesh)
     hit = es.run(o.astype(np.float32), d.astype(np.float32), dists=tmax.astype(np.float32), output=1)
     ok = hit["primID"] >= 0
     p = (o + hit["tfar"][:, None] * d)[ok]
@@ -58,7 +59,7 @@ def make_rays(scene, size: int = 256, seed: int = 0):
         target = lo + rng.random((len(p), 3)) * (hi - lo)
     far = np.full(len(p), 1e30)
     f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
-    return es, {
+    return (es, device), {
         "camera": (f32(o), f32(d), f32(tmax), "INTERSECT"),
         "bounce": (f32(p_off), f32(wi), f32(far), "INTERSECT"),
         "shadow": (f32(p_off), f32(target - p_off), f32(np.full(len(p), 1 - 1e-4)), "OCCLUDED"),
@@ -71,9 +72,8 @@ def embree_scene(mesh):
     from embreex.mesh_construction import TriangleMesh
     device = rtc.EmbreeDevice()
     es = rtcs.EmbreeScene(device)
-    es._ember_device = device  # keep the device alive with the scene
     TriangleMesh(es, np.ascontiguousarray(mesh.vertices, np.float32), np.ascontiguousarray(mesh.triangles, np.int32))
-    return es
+    return es, device  # the device must outlive the scene
 
 
 def _batches(rays):
@@ -93,7 +93,7 @@ def _trace(es, batch):
 def probe(scene, size: int = 256, seconds: float = 2.0, threads=(1, 2)) -> dict:
     """Rays per second per kind and for an equal mix, for each thread count:
     {threads: {"camera": r, "bounce": r, "shadow": r, "mix": r}}."""
-    es, rays = make_rays(scene, size)
+    (es, _device), rays = make_rays(scene, size)
     out = {}
     for n in threads:
         rates = {}

@@ -3,8 +3,8 @@
 
 Cycles' images cannot be snapshotted mid-render from Python, so each point of its ladder is
 a render of its own: a warm-up render syncs the scene (persistent data keeps the BVH for the
-rest), a calibration render measures samples per second, then budget b gets
-round(rate * b) samples. A point's time is that render's wall time from render_pre to
+rest), two calibration renders measure samples per second and the fixed cost of a render,
+then budget b gets round(rate * (b - fixed cost)) samples. A point's time is that render's wall time from render_pre to
 render_post (BVH build and scene sync excluded after the warm-up: Cycles' analogue of
 Ember's export).
 """
@@ -79,12 +79,16 @@ def render(scene, budgets, seed: int = 0, extra_samples=()) -> CyclesRun:
     with tempfile.TemporaryDirectory(prefix="ember_bench_") as tmp:
         path = os.path.join(tmp, "cycles.exr")
         _, sync = render_samples(scene, 1, seed + 1000, path)  # scene sync and BVH
+        # time = overhead + samples / rate: two renders, the second 4x the first and long
+        # enough to time, give both.
         n, t = 1, 0.0
         while t < CALIBRATION_SECONDS:
             n *= 4
-            _, t = render_samples(scene, n, seed + 1001, path)
-        rate = n / t
-        plan = [max(1, int(round(rate * b))) for b in sorted(budgets)] + [int(s) for s in extra_samples]
+            _, t_small = render_samples(scene, n // 4, seed + 1001, path)
+            _, t = render_samples(scene, n, seed + 1002, path)
+        rate = (n - n // 4) / max(t - t_small, 1e-3)
+        overhead = max(t_small - (n // 4) / rate, 0.0)
+        plan = [max(1, int(round(rate * (b - overhead)))) for b in sorted(budgets)] + [int(s) for s in extra_samples]
         labels = sorted(budgets) + [None] * len(extra_samples)
         for i, (spp, b) in enumerate(zip(plan, labels)):
             img, t = render_samples(scene, spp, seed + i, path)

@@ -70,9 +70,10 @@ def scene_table(name, sc):
 
 
 def throughput_tables(results):
-    lines = ["## Throughput and phases (error-ladder renders, Ember's whole run)", "",
+    lines = ["## Throughput and phases (error-ladder renders, Ember's whole run; build includes the "
+             "worker processes' start-up)", "",
              "| scene | integrator | samples/s | M rays/s | rays/path | Embree share | export s | build s | "
-             "render s | other s | Cycles samples/s | load (1 min) |",
+             "trace s | other s | Cycles samples/s | load (1 min) |",
              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
     for name, sc in results["scenes"].items():
         for rname, run in sc.get("runs", {}).items():
@@ -82,7 +83,7 @@ def throughput_tables(results):
             cyc = sc["runs"].get("cycles", {}).get("samples_per_second")
             lines.append(f"| {name} | {rname[6:]} | {t['samples_per_second']:.2f} | {t['rays_per_second'] / 1e6:.2f} | "
                          f"{t['rays_per_path']:.2f} | {t['embree_share']:.0%} | {ph['export_s']:.2f} | "
-                         f"{ph['build_s']:.2f} | {ph['render_s']:.2f} | {ph['other_s']:.2f} | {_fmt(cyc, '.1f')} | "
+                         f"{ph['build_s']:.2f} | {ph['trace_s']:.2f} | {ph['other_s']:.2f} | {_fmt(cyc, '.1f')} | "
                          f"{run['load'][0]:.1f}-{run['load'][1]:.1f} |")
     return lines + [""]
 
@@ -164,7 +165,7 @@ def plot(name, sc, path, eps_text=EPS_TEXT):
     if lo > 0 and ylo > 0:
         xs = np.array([lo, hi])
         ax.loglog(xs, np.sqrt(ylo * yhi) * np.sqrt(lo * hi) / xs, color="lightgrey", lw=0.8, label="slope -1")
-    ax.set_xlabel("time to image, s (Ember: build + render; Cycles: render)")
+    ax.set_xlabel("seconds to the image (Ember: after export; Cycles: after sync)")
     ax.set_ylabel("relMSE")
     ax.set_title(f"{name} ({sc['resolution']}): {eps_text}", fontsize=8)
     ax.grid(True, which="both", lw=0.3)

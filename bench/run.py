@@ -1,7 +1,7 @@
 """Speed against error: every Ember integrator and Cycles, every scene, a ladder of budgets.
 
-    python bench/run.py --quick          # a few minutes: the quick scenes, budgets 0.5-2 s
-    python bench/run.py                  # every scene, budgets 1-30 s, plus 2048x2048 memory
+    python bench/run.py --quick          # ~1.5 min: the quick scenes, budgets 1, 2, 4 s
+    python bench/run.py                  # ~23 min: every scene, budgets 1-30 s, 2048x2048 memory
     python bench/run.py --scenes cornell_box,interior --budgets 1,4 --no-cycles --out /tmp/b
 
 For each scene of bench/scenes.py that exists and has a reference (bench/references.py):
@@ -79,9 +79,8 @@ def _machine():
         pass
     import bpy
     import embreex
-    import numpy
     return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
-            "blender": bpy.app.version_string, "numpy": numpy.__version__,
+            "blender": bpy.app.version_string, "numpy": np.__version__,
             "embreex": getattr(embreex, "__version__", "")}
 
 
@@ -94,10 +93,9 @@ def _reference(scene, resolution):
     ch, header = imageio.read_exr(path)
     ref = np.stack([ch[c] for c in "RGB"], axis=-1).astype(np.float64)
     var = np.stack([ch[f"var.{c}"] for c in "RGB"], axis=-1).astype(np.float64) if "var.R" in ch else None
-    mask = ch["mask"] > 0.5 if "mask" in ch else None
     keep = ("renderer", "samples", "runs", "total_samples", "time_s", "blender_version", "mitsuba_version",
             "agreement")
-    return {"path": str(path.relative_to(ROOT)), "image": ref, "variance": var, "mask": mask,
+    return {"path": str(path.relative_to(ROOT)), "image": ref, "variance": var,
             "header": {k: (v.decode() if isinstance(v, bytes) else v) for k, v in header.items() if k in keep}}
 
 
@@ -105,7 +103,7 @@ def _points(snapshots, ref):
     """Metrics per snapshot."""
     from bench import metrics
     return [dict(budget=s.budget, seconds=s.seconds, samples=s.samples,
-                 **metrics.evaluate(s.image, ref["image"], ref["variance"], ref["mask"]))
+                 **metrics.evaluate(s.image, ref["image"], ref["variance"]))
             for s in snapshots]
 
 
@@ -120,16 +118,15 @@ def _open(path, resolution):
 
 
 def bench_scene(bs, args, budgets, integrators, resolution):
-    from bench import render_cycles, render_ember
+    from bench import metrics, render_cycles, render_ember
     ref = _reference(bs, resolution)
     result = {"note": bs.note, "file": f"scenes/{bs.file}"}
     if ref is None:
         result["skipped"] = f"no reference: run  python bench/references.py --only {bs.name}"
         return result
     h, w = ref["image"].shape[:2]
-    from bench import metrics
     result["reference"] = {"path": ref["path"], **ref["header"], "relmse_ref": (
-        None if ref["variance"] is None else metrics.reference_rel_mse(ref["image"], ref["variance"], ref["mask"]))}
+        None if ref["variance"] is None else metrics.reference_rel_mse(ref["image"], ref["variance"]))}
     result["resolution"] = f"{w}x{h}"
     runs = {}
     final_samples = None
@@ -145,16 +142,17 @@ def bench_scene(bs, args, budgets, integrators, resolution):
             print(f"  ember:{integ}: failed: {e}", flush=True)
             continue
         st = r.stats
-        final_samples = final_samples or r.snapshots[-1].samples
+        final_samples = final_samples or r.snapshots[-1].samples  # the first integrator's (path)
         runs[f"ember:{integ}"] = {
             "points": _points(r.snapshots, ref),
             "throughput": {"samples_per_second": r.snapshots[-1].samples / max(st.elapsed, 1e-9),
                            "rays_per_second": st.rays_per_second, "rays": st.rays,
                            "rays_per_path": st.rays / max(r.snapshots[-1].samples * w * h, 1),
                            "embree_share": st.embree_share, "processes": st.processes},
-            "phases": {"export_s": r.export_seconds, "build_s": st.build_seconds, "render_s": st.elapsed,
-                       "other_s": max(r.wall_seconds - r.export_seconds - st.build_seconds - st.elapsed, 0.0)},
-            "film_nonfinite_samples": r.film_nonfinite, "stopped_by": st.stopped_by,
+            "phases": {"export_s": r.export_seconds, "build_s": st.build_seconds,
+                       "trace_s": r.session_seconds - st.build_seconds,
+                       "other_s": r.wall_seconds - r.export_seconds - r.session_seconds},
+            "film_nonfinite_samples": int(st.nonfinite), "stopped_by": st.stopped_by,
             "load": [load0, _load()]}
         print(f"  ember:{integ}: {r.snapshots[-1].samples:.0f} spp in {st.elapsed:.1f} s, "
               f"relMSE {runs[f'ember:{integ}']['points'][-1]['relmse']:.3e}", flush=True)
@@ -261,11 +259,13 @@ def main(argv=None):
                        "relmse_eps": EPS}, "scenes": {}}
     for n in notes:
         print("note:", n, flush=True)
+    save = lambda: (out_dir / "results.json").write_text(json.dumps(results, indent=1))  # noqa: E731
     for bs in scenes:
         print(f"{bs.name}:", flush=True)
         results["scenes"][bs.name] = bench_scene(bs, args, budgets, integrators, RESOLUTION)
         if "skipped" in results["scenes"][bs.name]:
             print("  skipped:", results["scenes"][bs.name]["skipped"], flush=True)
+        save()  # a long run keeps what it measured if a later step fails
     if not args.no_throughput:
         print(f"throughput, cornell_box {THROUGHPUT_SIZE}x{THROUGHPUT_SIZE}:", flush=True)
         results["throughput"] = throughput(args, 5.0 if args.quick else 20.0)
@@ -276,7 +276,7 @@ def main(argv=None):
     results["run"]["wall_s"] = time.perf_counter() - t_start
 
     from bench import report
-    (out_dir / "results.json").write_text(json.dumps(results, indent=1))
+    save()
     report.write(results, out_dir)
     print(f"wrote {out_dir}/report.md, results.json and plots in {results['run']['wall_s']:.0f} s", flush=True)
     return 0

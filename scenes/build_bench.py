@@ -22,15 +22,13 @@ Scenes (bench/scenes.py lists them with the other scene scripts' files):
                         (Blender stores float32 vertices: 1 mm steps out there)
   hard_grazing          camera 25 cm above a 40 m checkerboard floor looking almost along it
 
-Features Ember does not have yet are built with Blender's own nodes, so Cycles renders the
-intended scene and Ember picks them up when they land (it warns and renders grey diffuse
-until then): Glass BSDF (caustic: issue 3), Glossy BSDF Beckmann (hard_phong: issue 3, and
-switch to Ember's Phong material with n = 19998 once it has one). Light Path 'Is Camera
-Ray' (caustic_specular_only) is only for the Cycles part of the caustic reference.
+Materials are Blender's own nodes, so Cycles renders the intended scene: Glass BSDF
+(caustic), Glossy BSDF Beckmann (hard_phong; Ember renders it as its Phong lobe when
+scene.ember.glossy_as_phong is on, which the file sets, and as GGX otherwise). Light Path
+'Is Camera Ray' (caustic_specular_only) is only for the Cycles part of the caustic reference.
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -279,6 +277,9 @@ def build_hard_phong():
     nt.links.new(g.outputs["BSDF"], out.inputs["Surface"])
     floor = bpy.data.objects["Floor"]
     floor.data.materials[0] = mirror
+    # Ember reads Glossy as its Phong lobe with scene.ember.glossy_as_phong (n = 2 / alpha^2 - 2
+    # = 19998); stored as an ID property, it takes effect once the add-on defines the setting.
+    scene["ember"] = {"glossy_as_phong": True}
     return scene
 
 
@@ -339,19 +340,7 @@ SCENES = {
 
 
 def main(argv=None):
-    if argv is None:
-        argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default=HERE, help="output folder (default: scenes/)")
-    ap.add_argument("--only", choices=sorted(SCENES), action="append",
-                    help="build only this scene (repeatable)")
-    args = ap.parse_args(argv)
-    os.makedirs(args.out, exist_ok=True)
-    for name in args.only or SCENES:
-        SCENES[name]()
-        path = os.path.join(os.path.abspath(args.out), name + ".blend")
-        bpy.ops.wm.save_as_mainfile(filepath=path, compress=True, copy=False)
-        print(f"wrote {path} ({os.path.getsize(path)} bytes)")
+    build.save_scenes(SCENES, build.scene_arguments(__doc__, SCENES).parse_args(build.script_argv(argv)))
 
 
 if __name__ == "__main__":

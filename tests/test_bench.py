@@ -101,11 +101,15 @@ def test_snapshots_take_the_first_image_past_each_budget():
         def mean(self):
             return np.full((2, 2, 3), float(self.count[0]))
 
-    shots = _Snapshots([1.0, 2.0, 4.0])
-    for elapsed, n in [(0.5, 1), (1.2, 0), (1.4, 2), (1.6, 3), (4.5, 8), (5.0, 9)]:
-        shots.on_progress("ViewLayer", SimpleNamespace(elapsed=elapsed, film=Film(n)))
+    now = [0.0]
+    shots = _Snapshots([1.0, 2.0, 4.0], clock=lambda: now[0])
+    now[0] = 0.3
+    shots.on_export("ViewLayer", "done")  # the clock starts here
+    for t, n in [(0.5, 1), (1.2, 0), (1.4, 2), (1.6, 3), (4.5, 8), (5.0, 9)]:
+        now[0] = 0.3 + t
+        shots.on_progress("ViewLayer", SimpleNamespace(film=Film(n)))
     # 1.2 s has no samples yet; 1.4 s is the first image past 1 s; 4.5 s passes 2 and 4 at once
-    assert [(b, t, n) for b, t, n, _ in shots.taken] == [(1.0, 1.4, 2.0), (4.0, 4.5, 8.0)]
+    assert [(b, round(t, 9), n) for b, t, n, _ in shots.taken] == [(1.0, 1.4, 2.0), (4.0, 4.5, 8.0)]
 
 
 def test_memory_probe_reads_this_process():
