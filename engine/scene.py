@@ -300,6 +300,8 @@ class Lights:
     world x, y, z axes (unit); area lights and spots emit along -z, the sun shines along -z.
     size (L,2): RECT half-extents along x, y; DISK semi-axes along x, y.
     radius (L,): POINT/SPOT sphere radius (0 = delta light).
+    soft (L,) bool: POINT/SPOT with Blender's "Soft Falloff" (its default): instead of a
+    sphere, a disk of `radius` that faces the shading point (Cycles' point.h, is_sphere off).
     Le (L,3): POINT/SPOT with radius > 0, RECT, DISK, SUN with angle > 0: radiance
     W/(m^2 sr); POINT/SPOT with radius 0: intensity W/sr; SUN with angle 0: irradiance W/m^2.
     spot_cos_half (L,), spot_smooth (L,): Cycles' smoothstep((cos - cos_half)/smooth).
@@ -312,6 +314,7 @@ class Lights:
     frame: np.ndarray
     size: np.ndarray
     radius: np.ndarray
+    soft: np.ndarray
     Le: np.ndarray
     spot_cos_half: np.ndarray
     spot_smooth: np.ndarray
@@ -331,6 +334,7 @@ class Lights:
             frame=np.array(g("frame", eye), np.float64).reshape(n, 3, 3),
             size=_f64(g("size", (0, 0)), (2,)),
             radius=np.array(g("radius", 0.0), np.float64).reshape(n),
+            soft=np.array(g("soft", False), bool).reshape(n),
             Le=_f64(g("Le", (0, 0, 0)), (3,)),
             spot_cos_half=np.array(g("spot_cos_half", -1.0), np.float64).reshape(n),
             spot_smooth=np.array(g("spot_smooth", 0.0), np.float64).reshape(n),

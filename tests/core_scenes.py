@@ -89,11 +89,11 @@ def furnace_box(albedo=0.5, Le=1.0, **kw):
     return Scene(mesh, mats, Lights.make([]), World(), perspective((0, -0.5, 0.2), (0, 1, 0), 70), settings(**kw))
 
 
-def sphere_with_point_light(albedo=0.5, intensity=np.pi, radius=0.0, **kw):
+def sphere_with_point_light(albedo=0.5, intensity=np.pi, radius=0.0, soft=False, **kw):
     """pbrt-v4's analytic test: inside a unit sphere (albedo 0.5) a point light I = pi gives L = 1."""
     v, t, n = uv_sphere((0, 0, 0), 1.0, 48, 96)
     mesh = Mesh(v, t, n, np.zeros(len(t), np.int32))
     mats = Materials.make([dict(kind=MAT_DIFFUSE, base_color=(albedo,) * 3)])
     Le = intensity if radius == 0 else intensity / (np.pi * radius**2)
-    lights = Lights.make([dict(kind=0, position=(0, 0, 0), radius=radius, Le=(Le,) * 3)])
+    lights = Lights.make([dict(kind=0, position=(0, 0, 0), radius=radius, Le=(Le,) * 3, soft=soft)])
     return Scene(mesh, mats, lights, World(), perspective((0, 0.3, 0), (0, 1, 0), 50), settings(**kw))

@@ -337,7 +337,7 @@ def test_material_mapping_and_fallback_warnings():
 def _light(sc, name):
     i = sc.lights.names.index(name)
     return {f: getattr(sc.lights, f)[i] for f in ("kind", "position", "frame", "size", "radius", "Le",
-                                                  "spot_cos_half", "spot_smooth", "sun_half_angle", "visible")}
+                                                  "spot_cos_half", "spot_smooth", "sun_half_angle", "visible", "soft")}
 
 
 def test_lights_in_cycles_units():
@@ -346,7 +346,8 @@ def test_lights_in_cycles_units():
     col = (1.0, 0.5, 0.25)
     add_light("POINT", "Point", location=(1, 2, 3), energy=100.0, color=col, shadow_soft_size=0.1, exposure=1.0)
     add_light("POINT", "Delta", energy=100.0, color=col, shadow_soft_size=0.0)
-    add_light("POINT", "Raw", energy=100.0, color=col, shadow_soft_size=0.1, normalize=False)
+    add_light("POINT", "Raw", energy=100.0, color=col, shadow_soft_size=0.1, normalize=False,
+              use_soft_falloff=False)
     add_light("SPOT", "Spot", rotation=(math.pi / 2, 0, 0), energy=50.0, shadow_soft_size=0.0,
               spot_size=math.radians(60), spot_blend=0.25)
     add_light("SUN", "Sun", energy=3.0, angle=math.radians(10))
@@ -365,6 +366,7 @@ def test_lights_in_cycles_units():
 
     p = _light(sc, "Point")
     assert p["kind"] == S.LIGHT_POINT and p["radius"] == pytest.approx(0.1) and p["visible"]
+    assert p["soft"] and not _light(sc, "Raw")["soft"]  # Blender's default is Soft Falloff on
     np.testing.assert_allclose(p["position"], [1, 2, 3], atol=1e-6)
     np.testing.assert_allclose(p["Le"], c * 200.0 / (math.pi * 4 * math.pi * 0.01), rtol=1e-5)
     d = _light(sc, "Delta")

@@ -47,14 +47,19 @@ def test_black_furnace_is_exactly_the_emission():
     assert np.all(mean == 0.7)
 
 
-@pytest.mark.parametrize("radius", [0.0, 0.05, 0.3])
-def test_sphere_enclosure_with_central_light_is_one(radius):
+def exact_enclosure(radius, soft):
+    return 1.0 / (1.0 + radius**2) if soft else 1.0
+
+
+@pytest.mark.parametrize("radius,soft", [(0.0, False), (0.05, False), (0.3, False), (0.3, True)])
+def test_sphere_enclosure_with_central_light_is_one(radius, soft):
     """pbrt-v4 integrators_test: unit sphere, albedo 0.5, light of intensity pi at the centre -> 1.
-    The sphere is tessellated (96x48), which shifts the exact answer by < 0.3 %."""
-    mean, var, stats = render(sphere_with_point_light(radius=radius, samples=64, width=12, height=12))
+    Soft Falloff's disk facing each wall point at distance 1 gives it irradiance I / (1 + r^2)
+    instead of I, so 1 / (1 + r^2). The sphere is tessellated (96x48): < 0.3 % off."""
+    mean, var, stats = render(sphere_with_point_light(radius=radius, soft=soft, samples=64, width=12, height=12))
     m, se = image_mean_and_se(mean, var)
     assert stats.nonfinite == 0
-    assert abs(m - 1.0) < 4 * se + 0.003
+    assert abs(m - exact_enclosure(radius, soft)) < 4 * se + 0.003
 
 
 def _emitter_wall(kind):
@@ -129,14 +134,14 @@ def test_bsdf_sampling_alone_converges_to_the_furnace():
     assert_pixels_match(mean, var, 2.0)
 
 
-@pytest.mark.parametrize("radius", [0.05, 0.3])
-def test_strategies_agree_on_a_sphere_light(radius):
-    """Sphere light inside a sphere: MIS, light-only and BSDF-only agree with the exact 1."""
+@pytest.mark.parametrize("radius,soft", [(0.05, False), (0.3, False), (0.3, True)])
+def test_strategies_agree_on_a_sphere_light(radius, soft):
+    """Sphere (or soft disk) light inside a sphere: MIS, light-only and BSDF-only agree with the exact value."""
     for strategy in ("mis", "light", "bsdf"):
-        mean, var, _ = render(sphere_with_point_light(radius=radius, samples=64, width=12, height=12,
+        mean, var, _ = render(sphere_with_point_light(radius=radius, soft=soft, samples=64, width=12, height=12,
                                                       strategy=strategy))
         m, se = image_mean_and_se(mean, var)
-        assert abs(m - 1.0) < 4 * se + 0.003, strategy
+        assert abs(m - exact_enclosure(radius, soft)) < 4 * se + 0.003, strategy
 
 
 def test_noise_target_stops_the_render():

@@ -14,8 +14,10 @@ Confirmed in blender/blender (5.x):
   irradiance (sun angle = 0: strength).
 - kernel/light/spot.h: attenuation smoothstep((cos - cos(size/2)) / ((1 - cos(size/2)) * blend)),
   power is not concentrated into the cone.
-Approximations: point/spot 'soft falloff' (Cycles' default, a disk facing the shading
-point) is modelled as a sphere of the same radius; area spread, per-ray-type visibility,
+- kernel/light/point.h: with use_soft_falloff (the default) a point/spot of radius r is a
+  disk of radius r through its centre facing the shading point (uniform by area); without
+  it, a sphere (uniform in the subtended cone).
+Approximations: area spread, per-ray-type visibility,
 shadow toggle, light node trees beyond one Emission node and non-uniformly scaled spot
 cones are not modelled (warned).
 """
@@ -93,7 +95,7 @@ def light_row(light, name: str, matrix_world: np.ndarray, visible_camera: bool, 
             Le = strength / (math.pi * (4.0 * math.pi * r * r)) if normalize else strength / math.pi
         else:
             Le = strength / (4.0 * math.pi) if normalize else strength / math.pi
-        row.update(kind=LIGHT_POINT, radius=r, Le=Le)
+        row.update(kind=LIGHT_POINT, radius=r, Le=Le, soft=bool(getattr(light, "use_soft_falloff", True)))
         if kind == "SPOT":
             cos_half = math.cos(0.5 * float(light.spot_size))
             row.update(kind=LIGHT_SPOT, spot_cos_half=cos_half,

@@ -1,6 +1,9 @@
 """Per-kind geometry of analytic lights: sampling from a shading point, ray hits, power.
 
 Conventions (Scene.Lights): spheres (point/spot of radius r) emit uniformly outward;
+with `soft` (Blender's Soft Falloff, its default) a point/spot is instead a disk of radius r
+centred on the light and facing the shading point (ray origin), emitting the same radiance
+(intern/cycles/kernel/light/point.h, the branch without is_sphere);
 rect and disk emit one-sided along the light's -z; the sun's light travels along -z from a
 cone of half-angle `sun_half_angle` around +z. Spot cones attenuate with Cycles'
 smoothstep((cos - cos_half) / smooth) of the direction from the light to the lit point
@@ -88,18 +91,23 @@ def sample_analytic(kind, lights: Lights, idx, p, u):
         d2 = dot(v, v)
         dist = np.sqrt(d2)
         to_c = v / np.maximum(dist, 1e-300)[:, None]
+        t_axis, b_axis = sampling.frame_from_z(to_c)
+        # Sphere: uniform in the cone it subtends, up to its near side along wi.
         sin2 = np.minimum(np.divide(r * r, d2, out=np.ones_like(d2), where=d2 > 0), 1.0)
         local, omc_max = sampling.sample_sphere_cone(u, sin2)
-        t_axis, b_axis = sampling.frame_from_z(to_c)
         wi = np.where((r > 0)[:, None], sampling.to_world(local, t_axis, b_axis, to_c), to_c)
         cos_t = local[:, 2]
-        # Distance to the near side of the sphere along wi.
         t_hit = dist * cos_t - np.sqrt(np.maximum(r * r - d2 * (1.0 - cos_t * cos_t), 0.0))
         t_hit = np.where(r > 0, t_hit, dist)
         target = p + wi * t_hit[:, None]
-        inside = d2 <= r * r
         pdf_dir = np.where(r > 0, np.divide(1.0, 2.0 * np.pi * omc_max, out=np.zeros(n), where=omc_max > 0), 1.0)
-        pdf_dir = np.where(inside, 0.0, pdf_dir)
+        pdf_dir = np.where(d2 <= r * r, 0.0, pdf_dir)  # inside the sphere: nothing to sample
+        soft = lights.soft[idx] & (r > 0)
+        if soft.any():  # disk facing p: uniform by area
+            xy = sampling.sample_concentric_disk(u[soft]) * r[soft, None]
+            y = c[soft] + xy[:, :1] * t_axis[soft] + xy[:, 1:2] * b_axis[soft]
+            wi[soft], pdf_dir[soft], target[soft] = area_to_solid_angle(
+                p[soft], y, -to_c[soft], np.pi * r[soft] ** 2, two_sided=False)
         Le = lights.Le[idx] * np.where(r > 0, 1.0, 1.0 / np.maximum(d2, 1e-300))[:, None]
         if kind == LIGHT_SPOT:
             Le = Le * spot_attenuation(lights, idx, -wi)[:, None]
@@ -134,16 +142,23 @@ def hit_analytic(kind, lights: Lights, i: int, o, d, tmax):
     if kind in (LIGHT_POINT, LIGHT_SPOT):
         r = lights.radius[i]
         f = o - c
-        b = dot(f, d)
-        perp = f - b[:, None] * d
-        disc = r * r - dot(perp, perp)
         f2 = dot(f, f)
-        outside = f2 > r * r
-        t = -b - np.sqrt(np.maximum(disc, 0.0))
-        hit = outside & (disc >= 0) & (t > 0) & (t < tmax)
-        sin2 = np.minimum(r * r / np.maximum(f2, 1e-300), 1.0)
-        omc = sin2 / (1.0 + np.sqrt(1.0 - sin2))
-        pdf_dir = np.divide(1.0, 2.0 * np.pi * omc, out=np.zeros(n), where=omc > 0)
+        if lights.soft[i]:  # disk through c facing o
+            n_disk = f / np.sqrt(np.maximum(f2, 1e-300))[:, None]
+            cos_l = -dot(d, n_disk)
+            t = np.divide(f2 ** 0.5, cos_l, out=np.full(n, -1.0), where=cos_l > 0)
+            q = f + t[:, None] * d
+            hit = (cos_l > 0) & (dot(q, q) <= r * r) & (t > 0) & (t < tmax)
+            pdf_dir = np.divide(t * t, np.pi * r * r * cos_l, out=np.zeros(n), where=hit)
+        else:
+            b = dot(f, d)
+            perp = f - b[:, None] * d
+            disc = r * r - dot(perp, perp)
+            t = -b - np.sqrt(np.maximum(disc, 0.0))
+            hit = (f2 > r * r) & (disc >= 0) & (t > 0) & (t < tmax)
+            sin2 = np.minimum(r * r / np.maximum(f2, 1e-300), 1.0)
+            omc = sin2 / (1.0 + np.sqrt(1.0 - sin2))
+            pdf_dir = np.divide(1.0, 2.0 * np.pi * omc, out=np.zeros(n), where=omc > 0)
         Le = np.broadcast_to(lights.Le[i], (n, 3)).copy()
         if kind == LIGHT_SPOT:
             Le *= spot_attenuation(lights, i, -d)[:, None]  # from the light towards o
