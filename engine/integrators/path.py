@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..vec import dot, length, max3
+from ..vec import dot, interpolate, length, max3, scale, take
 
 from .. import camera as camera_mod
 from ..accel import Accel, offset_origin
@@ -35,7 +35,13 @@ _DIMS = 8
 
 def _towards(n: np.ndarray, w: np.ndarray) -> np.ndarray:
     """n flipped to the side of w (reflection leaves on the normal's side, refraction not)."""
-    return np.where((dot(n, w) >= 0)[:, None], n, -n)
+    return scale(n, np.where(dot(n, w) >= 0, 1.0, -1.0))
+
+
+def _accumulate(L: np.ndarray, rows: np.ndarray, c: np.ndarray) -> None:
+    """L[:, rows] += c.T for L (3,N) (rows unique): three 1-D scatters, not one slow (N,3) one."""
+    for k in range(3):
+        L[k][rows] += c[:, k]
 
 
 class PathTracer:
@@ -60,7 +66,7 @@ class PathTracer:
         s = self.scene
         o64, d, tmax = camera_mod.generate_rays(s.camera, s.settings, px, py, sampler.get(0, None, 2))
         n = len(px)
-        L = np.zeros((n, 3))
+        L = np.zeros((3, n))  # channel-major: see _accumulate
         idx = np.arange(n)  # which pixel sample each live path belongs to
         o32 = o64.astype(np.float32)
         beta = np.ones((n, 3))
@@ -78,40 +84,40 @@ class PathTracer:
             camera_ray = np.full(len(idx), depth == 0)
             # Light objects the ray passes on its way (they do not stop it).
             if len(self.lights.hittable):
-                L[idx] += beta * self.lights.emission_along(o64, d, hit.t, pdf_prev, ~no_mis, camera_ray)
+                _accumulate(L, idx, beta * self.lights.emission_along(o64, d, hit.t, pdf_prev, ~no_mis, camera_ray))
             # Escaped rays see the suns and the world.
             missed = hit.prim < 0
             if missed.any() and self.lights.sees_escaped:
                 r = np.flatnonzero(missed)
-                L[idx[r]] += beta[r] * self.lights.escaped(d[r], pdf_prev[r], ~no_mis[r], camera_ray[r])
+                _accumulate(L, idx[r], take(beta, r) * self.lights.escaped(take(d, r), pdf_prev[r], ~no_mis[r], camera_ray[r]))
             keep = np.flatnonzero(~missed)
             if len(keep) == 0:
                 break
             o_prev = o64  # previous vertices, indexed through `keep` where needed
-            idx, beta, pdf_prev, no_mis, hit_p, hit_t, d = (
-                idx[keep], beta[keep], pdf_prev[keep], no_mis[keep], hit.p[keep], hit.t[keep], d[keep])
-            prim, bary, ng = hit.prim[keep], hit.b[keep], hit.ng[keep]
+            idx, pdf_prev, no_mis, hit_t, prim = idx[keep], pdf_prev[keep], no_mis[keep], hit.t[keep], hit.prim[keep]
+            beta, hit_p, d, bary, ng = (take(a, keep) for a in (beta, hit.p, d, hit.b, hit.ng))
             mat = mesh.material[prim]
             # Emissive triangles hit by the ray.
             emits = self.emissive_material[mat]
             if emits.any():
                 r = np.flatnonzero(emits)
-                Le = self.materials.emission[mat[r]]
-                cos_l = np.abs(dot(d[r], ng[r]))
-                pdf_light = self.lights.pdf_triangle_hit(prim[r], o_prev[keep[r]], hit_t[r], cos_l)
+                Le = take(self.materials.emission, mat[r])
+                cos_l = np.abs(dot(take(d, r), take(ng, r)))
+                pdf_light = self.lights.pdf_triangle_hit(prim[r], take(o_prev, keep[r]), hit_t[r], cos_l)
                 w = np.where(no_mis[r], 1.0, pdf_prev[r] / np.maximum(pdf_prev[r] + pdf_light, 1e-300))
-                L[idx[r]] += beta[r] * Le * w[:, None]
+                _accumulate(L, idx[r], take(beta, r) * scale(Le, w))
             if depth == self.max_depth:
                 break
             # Shading frame, flipped to the side the ray came from (two-sided, like Cycles).
             wo = -d
-            side = np.where(dot(ng, wo) >= 0, 1.0, -1.0)[:, None]
-            ng_f = ng * side
-            cn = mesh.normals[prim]
-            ns = bary[:, 0:1] * cn[:, 0] + bary[:, 1:2] * cn[:, 1] + bary[:, 2:3] * cn[:, 2]
-            ns_len = length(ns)[:, None]
-            ns = np.where(ns_len > 1e-12, ns / np.maximum(ns_len, 1e-300), ng) * side
-            ns = np.where((dot(ns, ng_f) > 0)[:, None], ns, ng_f)
+            side = np.where(dot(ng, wo) >= 0, 1.0, -1.0)
+            ng_f = scale(ng, side)
+            ns = interpolate(bary, take(mesh.normals, prim))
+            ns_len = length(ns)
+            ns = scale(ns, side / np.maximum(ns_len, 1e-300))
+            bad = (ns_len <= 1e-12) | (dot(ns, ng_f) <= 0)  # degenerate or below the surface
+            if bad.any():
+                ns[bad] = ng_f[bad]
             bsdf = make_closure(s, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary)
             ns = bsdf.ns  # may be perturbed (normal maps)
             albedo = max3(bsdf.reflectance)
@@ -120,33 +126,36 @@ class PathTracer:
             # Next-event estimation at points whose BSDF has a non-delta part.
             active = np.flatnonzero(bsdf.has_smooth)
             if len(active) and self.use_nee and not self.lights.empty:
-                ls = self.lights.sample(hit_p[active], sampler.get(base, idx[active]),
+                all_active = len(active) == m
+                at = (lambda a: a) if all_active else (lambda a: take(a, active))
+                ls = self.lights.sample(at(hit_p), sampler.get(base, idx[active]),
                                         sampler.get(base + 1, idx[active], 2))
                 f, pdf_b = bsdf.eval(ls.wi, active)
-                cos_i = np.abs(dot(ls.wi, ns[active]))
+                cos_i = np.abs(dot(ls.wi, at(ns)))
                 pdf_b_mis = q[active] * pdf_b if self.mis else 0.0
                 w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_b_mis, 1e-300))
-                contrib = beta[active] * f * ls.Le * np.divide(cos_i * w, ls.pdf, out=np.zeros(len(active)),
-                                                                  where=ls.valid)[:, None]
+                contrib = at(beta) * f * scale(ls.Le, np.divide(cos_i * w, ls.pdf, out=np.zeros(len(active)),
+                                                                 where=ls.valid))
                 test = np.flatnonzero(max3(contrib) > 0)
                 if len(test):
                     rows = active[test]
-                    o_shadow = offset_origin(hit_p[rows], _towards(ng_f[rows], ls.wi[test]))
-                    blocked = self.accel.occluded(o_shadow, ls.target[test], prim[rows], ls.target_prim[test])
-                    L[idx[rows]] += np.where(blocked[:, None], 0.0, contrib[test])
+                    o_shadow = offset_origin(take(hit_p, rows), _towards(take(ng_f, rows), take(ls.wi, test)))
+                    blocked = self.accel.occluded(o_shadow, take(ls.target, test), prim[rows], ls.target_prim[test])
+                    lit = np.flatnonzero(~blocked)
+                    _accumulate(L, idx[rows[lit]], take(contrib, test[lit]))
             # BSDF sampling continues the path; Russian roulette with survival q.
             bs = bsdf.sample(sampler.get(base + 2, idx, 2), sampler.get(base + 4, idx))
             survive = bs.valid & (sampler.get(base + 3, idx) < q)
-            beta = beta * bs.weight * np.divide(1.0, q, out=np.zeros(m), where=survive)[:, None]
+            beta = beta * scale(bs.weight, np.divide(1.0, q, out=np.zeros(m), where=survive))
             survive &= max3(beta) > 0
             keep = np.flatnonzero(survive)
-            idx, beta, d = idx[keep], beta[keep], bs.wi[keep]
+            idx, beta, d = idx[keep], take(beta, keep), take(bs.wi, keep)
             # Strategy switches: pdf_prev 0 makes emission found after a non-delta bounce weigh 0
             # ("light" alone); no_mis makes it weigh 1 (after delta bounces, or "bsdf" alone).
             pdf_prev = (q * bs.pdf)[keep] if self.bsdf_hits else np.zeros(len(keep))
             no_mis = bs.delta[keep] | (not self.use_nee)
-            o64 = hit_p[keep]
-            o32 = offset_origin(o64, _towards(ng_f[keep], d))
+            o64 = take(hit_p, keep)
+            o32 = offset_origin(o64, _towards(take(ng_f, keep), d))
             skip = prim[keep]
             tmax = None
-        return L
+        return np.ascontiguousarray(L.T)

@@ -20,6 +20,7 @@ import numpy as np
 
 from .. import sampling
 from ..scene import LIGHT_SUN, Lights, Materials, Mesh, World
+from ..vec import scale, take
 from . import environment, shapes
 
 
@@ -97,36 +98,44 @@ class LightSet:
     def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray) -> LightSample:
         """One light sample per shading point p (N,3) float64; u_select (N,), u (N,2)."""
         n = len(p)
-        wi = np.zeros((n, 3))
-        wi[:, 2] = 1.0
-        Le = np.zeros((n, 3))
-        pdf_dir = np.zeros(n)
-        target = p + wi
-        target_prim = np.full(n, -1, np.int64)
-        finite = np.ones(n, bool)
         index, pmf, _ = self.select.sample_discrete(u_select)
+        out = {}  # field -> (N,...) array; every row belongs to exactly one kind of light
+
+        def put(rows, **values):
+            if len(rows) == n:  # one kind for all rows (the common case): no scatter
+                out.update(values)
+                return
+            for key, v in values.items():
+                if key not in out:
+                    out[key] = np.zeros((n,) + v.shape[1:], v.dtype)
+                out[key][rows] = v
+
+        def rows_of(mask):
+            rows = np.flatnonzero(mask)
+            return rows, (rows if len(rows) < n else slice(None))  # (indices, what to gather with)
+
         is_tri = (index >= self.n_analytic) & (index < self.n_analytic + len(self.tri_prim))
         is_env = index == self.env_index
         if is_env.any():
-            rows = np.flatnonzero(is_env)
-            wi[rows], Le[rows], pdf_dir[rows], _ = self.env.sample(u[rows])
-            target[rows] = p[rows] + wi[rows] * 1e30
-            finite[rows] = False
+            rows, r = rows_of(is_env)
+            wi, Le, pdf_dir, _ = self.env.sample(u[r])
+            put(rows, wi=wi, Le=Le, pdf_dir=pdf_dir, target=p[r] + wi * 1e30, finite=np.zeros(len(rows), bool))
+        target_prim = np.full(n, -1, np.int64)
         if is_tri.any():
-            rows = np.flatnonzero(is_tri)
-            t = index[rows] - self.n_analytic
-            b = sampling.sample_uniform_triangle(u[rows])
-            y = self.tri_v0[t] + b[:, 1:2] * self.tri_e1[t] + b[:, 2:3] * self.tri_e2[t]
-            wi[rows], pdf_dir[rows], target[rows] = shapes.area_to_solid_angle(
-                p[rows], y, self.tri_ng[t], self.tri_area[t], two_sided=True)
-            Le[rows] = self.tri_Le[t]
-            target_prim[rows] = self.tri_prim[t]
+            rows, r = rows_of(is_tri)
+            t = index[r] - self.n_analytic
+            b = sampling.sample_uniform_triangle(u[r])
+            y = take(self.tri_v0, t) + scale(take(self.tri_e1, t), b[:, 1]) + scale(take(self.tri_e2, t), b[:, 2])
+            wi, pdf_dir, target = shapes.area_to_solid_angle(p[r], y, take(self.tri_ng, t), self.tri_area[t], two_sided=True)
+            put(rows, wi=wi, Le=take(self.tri_Le, t), pdf_dir=pdf_dir, target=target, finite=np.ones(len(rows), bool))
+            target_prim[r] = self.tri_prim[t]
         for kind in self.kinds_present:
-            rows = np.flatnonzero((index < self.n_analytic)
-                                  & (self.lights.kind[np.minimum(index, max(self.n_analytic - 1, 0))] == kind))
+            rows, r = rows_of((index < self.n_analytic)
+                              & (self.lights.kind[np.minimum(index, max(self.n_analytic - 1, 0))] == kind))
             if len(rows):
-                s = shapes.sample_analytic(kind, self.lights, index[rows], p[rows], u[rows])
-                wi[rows], Le[rows], pdf_dir[rows], target[rows], finite[rows] = s
+                wi, Le, pdf_dir, target, finite = shapes.sample_analytic(kind, self.lights, index[r], p[r], u[r])
+                put(rows, wi=wi, Le=Le, pdf_dir=pdf_dir, target=target, finite=finite)
+        wi, Le, pdf_dir, target, finite = (out[k] for k in ("wi", "Le", "pdf_dir", "target", "finite"))
         delta = self.delta[index]
         pdf = np.where(delta, pmf, pmf * pdf_dir)
         valid = (pdf > 0) & np.isfinite(pdf) & (avg(Le) > 0)

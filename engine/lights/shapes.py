@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..vec import dot, max3
+from ..vec import dot, scale
 
 from .. import sampling
 from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, Lights
@@ -69,7 +69,7 @@ def area_to_solid_angle(p, y, n_light, area_light, two_sided):
     v = y - p
     d2 = dot(v, v)
     d = np.sqrt(d2)
-    wi = np.divide(v, d[:, None], out=np.zeros_like(v), where=d[:, None] > 0)
+    wi = scale(v, np.divide(1.0, d, out=np.zeros_like(d), where=d > 0))
     cos_l = -dot(wi, n_light)
     if two_sided:
         cos_l = np.abs(cos_l)
