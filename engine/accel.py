@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .scene import Mesh
+from .vec import scale, take
 
 _ORIGIN = 1.0 / 32.0
 _FLOAT_SCALE = 1.0 / 65536.0
@@ -32,11 +33,13 @@ def offset_origin(p: np.ndarray, ng: np.ndarray) -> np.ndarray:
     """Float32 points just off the surface on the side `ng` points to. p, ng (N,3) -> (N,3) f32."""
     p32 = np.ascontiguousarray(p, dtype=np.float32)
     n32 = np.asarray(ng, dtype=np.float32)
-    of_i = np.rint(_INT_SCALE * n32).astype(np.int32)
-    p_i = p32.view(np.int32) + np.where(p32 < 0, -of_i, of_i)
-    p_far = p_i.view(np.float32)
-    near = np.abs(p32) < _ORIGIN
-    return np.where(near, p32 + np.float32(_FLOAT_SCALE) * n32, p_far)
+    p_i = p32.view(np.int32)
+    of_i = np.rint(np.float32(_INT_SCALE) * n32).astype(np.int32)
+    sign = p_i >> 31  # -1 where p < 0: negate the step there (two's complement: (x ^ s) - s)
+    out = (p_i + ((of_i ^ sign) - sign)).view(np.float32)
+    near = np.abs(p32) < _ORIGIN  # near 0 ULPs are tiny: a fixed float step instead
+    np.copyto(out, p32 + np.float32(_FLOAT_SCALE) * n32, where=near)
+    return out
 
 
 @dataclass
@@ -117,10 +120,10 @@ class Accel:
         miss = prim < 0
         t[miss] = np.inf
         safe = np.where(miss, 0, prim)
-        p = self.v0[safe] + b1[:, None] * self.e1[safe] + b2[:, None] * self.e2[safe]
+        p = take(self.v0, safe) + scale(take(self.e1, safe), b1) + scale(take(self.e2, safe), b2)
         b = np.empty((n, 3))
         b[:, 0], b[:, 1], b[:, 2] = 1.0 - b1 - b2, b1, b2
-        return Hit(prim=prim, t=t, p=p, b=b, ng=self.ng[safe])
+        return Hit(prim=prim, t=t, p=p, b=b, ng=take(self.ng, safe))
 
     def _retrace_self_hits(self, o32, d32, tfar, skip_prim, prim, t, b1, b2):
         """Rays that re-hit the triangle they leave are traced again from just through its

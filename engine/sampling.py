@@ -67,14 +67,22 @@ def frame_from_z(n):
 def to_world(v_local, t, b, n):
     """Local (N, 3) vectors in the frame (t, b, n) -> world (N, 3)."""
     v_local = np.asarray(v_local, dtype=np.float64)
-    return v_local[..., 0:1] * t + v_local[..., 1:2] * b + v_local[..., 2:3] * n
+    x, y, z = v_local[..., 0], v_local[..., 1], v_local[..., 2]
+    t, b, n = np.broadcast_arrays(t, b, n)
+    out = np.empty(np.broadcast_shapes(v_local.shape, t.shape))
+    for k in range(3):  # column by column: NumPy is slow on (N,1) x (N,3) broadcasts
+        out[..., k] = x * t[..., k] + y * b[..., k] + z * n[..., k]
+    return out
 
 
 def to_local(v, t, b, n):
     """World (N, 3) vectors -> coordinates (N, 3) in the orthonormal frame (t, b, n)."""
     v = np.asarray(v, dtype=np.float64)
-    return np.stack([np.sum(v * t, axis=-1), np.sum(v * b, axis=-1), np.sum(v * n, axis=-1)],
-                    axis=-1)
+
+    def dot3(a):
+        return v[..., 0] * a[..., 0] + v[..., 1] * a[..., 1] + v[..., 2] * a[..., 2]
+
+    return np.stack([dot3(t), dot3(b), dot3(n)], axis=-1)
 
 
 # ----------------------------------------------------------------------------------------------

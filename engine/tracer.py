@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .accel import Accel
+from .allocator import keep_freed_memory
 from .integrators.path import PathTracer
 from .lights.light_set import LightSet
 from .rng import Sampler
@@ -35,6 +36,7 @@ class BatchLayout:
 
 class BatchTracer:
     def __init__(self, scene: Scene):
+        keep_freed_memory()  # in whichever process traces
         s = scene.settings
         self.scene = scene
         self.layout = BatchLayout(scene)

@@ -116,3 +116,12 @@ def test_empty_scene_misses_everything():
     accel = Accel(Mesh.empty())
     hit = accel.intersect(np.zeros((4, 3), np.float32), np.tile([0, 0, 1.0], (4, 1)))
     assert np.all(hit.prim == -1) and not accel.occluded(np.zeros((4, 3)), target=np.ones((4, 3))).any()
+
+
+def test_freed_numpy_memory_stays_in_the_heap():
+    """glibc accepts the thresholds that keep batch temporaries out of mmap (Linux CI)."""
+    import sys
+    from ember.engine.allocator import keep_freed_memory
+    if not sys.platform.startswith("linux"):
+        pytest.skip("glibc only")
+    assert keep_freed_memory() is True

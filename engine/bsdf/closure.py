@@ -30,7 +30,7 @@ import numpy as np
 from .. import sampling, textures
 from ..scene import (FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET,
                      LOBE_PHONG, LOBE_TRANSPARENT, Scene)
-from ..vec import dot, max3, normalize
+from ..vec import dot, max3, normalize, scale, take
 from . import dielectric, diffuse, fresnel, layering, microfacet, phong
 
 # Smallest lobe-selection estimate, relative to the lobe's weight: a lobe whose albedo
@@ -435,15 +435,16 @@ class LambertClosure:
         self.t, self.b = sampling.frame_from_z(ns)
 
     def eval(self, wi: np.ndarray, rows: np.ndarray):
-        cos_i = np.where(dot(wi, self.ng[rows]) > 0, dot(wi, self.ns[rows]), 0.0)
-        return diffuse.eval(self.albedo[rows], cos_i), diffuse.pdf(cos_i)
+        at = (lambda a: a) if len(rows) == len(self.ns) else (lambda a: take(a, rows))
+        cos_i = np.where(dot(wi, at(self.ng)) > 0, dot(wi, at(self.ns)), 0.0)
+        return diffuse.eval(at(self.albedo), cos_i), diffuse.pdf(cos_i)
 
     def sample(self, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
         local = diffuse.sample(u)
         wi = sampling.to_world(local, self.t, self.b, self.ns)
         ok = (dot(wi, self.ng) > 0) & (local[:, 2] > 0) & self.has_smooth
         # f cos / pdf = albedo for cosine-weighted sampling of a Lambertian lobe.
-        weight = np.where(ok[:, None], self.albedo, 0.0)
+        weight = scale(self.albedo, ok)
         pdf = np.where(ok, diffuse.pdf(local[:, 2]), 0.0)
         return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=np.zeros(len(ok), bool), valid=ok)
 

@@ -2,11 +2,12 @@
 import numpy as np
 
 from .. import sampling
+from ..vec import scale
 
 
 def eval(albedo: np.ndarray, cos_i: np.ndarray) -> np.ndarray:
     """f (N,3) for incident cosines cos_i (N,) measured from the shading normal."""
-    return np.where((cos_i > 0)[:, None], albedo / np.pi, 0.0)
+    return scale(albedo, np.where(cos_i > 0, 1.0 / np.pi, 0.0))
 
 
 def pdf(cos_i: np.ndarray) -> np.ndarray:
