@@ -44,3 +44,11 @@ def interpolate(b: np.ndarray, corners: np.ndarray) -> np.ndarray:
     for k in range(3):
         out[:, k] = b0 * corners[:, 0, k] + b1 * corners[:, 1, k] + b2 * corners[:, 2, k]
     return out
+
+
+def minus_point(v: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """v - c for v (N,3) and one point c (3,), column by column."""
+    out = np.empty(v.shape)
+    for k in range(3):
+        np.subtract(v[:, k], c[k], out=out[:, k])
+    return out

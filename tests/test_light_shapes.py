@@ -29,8 +29,8 @@ def _irradiance_by_cosine_rays(lights, p, n, rng):
     """E = pi E_cos[L]: directions from the cosine-weighted hemisphere around n, lights hit by rays."""
     t, b = sampling.frame_from_z(n[None])
     d = sampling.to_world(sampling.sample_cosine_hemisphere(rng.random((N, 2))), t, b, n[None])
-    hit, Le, pdf_dir = shapes.hit_analytic(LIGHT_POINT, lights, 0, np.broadcast_to(p, (N, 3)), d, np.full(N, np.inf))
-    f = np.pi * np.where(hit, Le[:, 0], 0.0)
+    hit, gain, pdf_dir = shapes.hit_analytic(LIGHT_POINT, lights, 0, np.broadcast_to(p, (N, 3)), d, np.full(N, np.inf))
+    f = np.pi * np.where(hit, gain * lights.Le[0, 0], 0.0)
     return f.mean(), f.std() / np.sqrt(N), hit, pdf_dir, d
 
 

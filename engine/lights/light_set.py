@@ -160,8 +160,8 @@ class LightSet:
         total = np.zeros((len(o), 3))
         lights = self.lights
         for i in self.hittable.tolist():
-            hit, Le, pdf_dir = shapes.hit_analytic(int(lights.kind[i]), lights, i, o, d, tmax)
-            total += self._weighted(i, hit, Le, pdf_dir, pdf_bsdf, use_mis, camera)
+            hit, gain, pdf_dir = shapes.hit_analytic(int(lights.kind[i]), lights, i, o, d, tmax)
+            self._add_weighted(total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera)
         return total
 
     def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray) -> np.ndarray:
@@ -170,8 +170,8 @@ class LightSet:
         light-sampled). Camera rays see the world only if it is visible."""
         total = np.zeros((len(d), 3))
         for i in self.suns.tolist():
-            hit, Le, pdf_dir = shapes.sun_hit(self.lights, i, d)
-            total += self._weighted(i, hit, Le, pdf_dir, pdf_bsdf, use_mis, camera)
+            hit, gain, pdf_dir = shapes.sun_hit(self.lights, i, d)
+            self._add_weighted(total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera)
         seen = ~camera | self.world_visible
         if self.env is not None:
             Le = self.env.eval(d)
@@ -184,11 +184,14 @@ class LightSet:
             total += np.where(seen[:, None], self.world, 0.0)
         return total
 
-    def _weighted(self, i, hit, Le, pdf_dir, pdf_bsdf, use_mis, camera):
+    def _add_weighted(self, total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera):
+        """total += gain x Le[i] x MIS weight on the rays that hit light i."""
         if not self.lights.visible[i]:
             hit = hit & ~camera
         if not hit.any():
-            return 0.0
-        pdf_light = self.select.pmf(np.full(len(hit), i)) * pdf_dir
+            return
+        pdf_light = self.select.pmf(np.array([i]))[0] * pdf_dir
         w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
-        return np.where(hit[:, None], Le * w[:, None], 0.0)
+        a = np.where(hit, gain * w, 0.0)
+        for k in range(3):
+            total[:, k] += a * self.lights.Le[i, k]

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..vec import dot, scale
+from ..vec import dot, minus_point, scale, take
 
 from .. import sampling
 from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, Lights
@@ -82,35 +82,41 @@ def sample_analytic(kind, lights: Lights, idx, p, u):
     """Sample lights idx (all of `kind`) from points p (N,3).
     Returns wi, Le, pdf_dir (solid angle; 1 for delta lights), target, finite."""
     n = len(p)
-    c = lights.position[idx]
-    frame = lights.frame[idx]
+    c = take(lights.position, idx)
+    frame = take(lights.frame, idx)
     finite = np.ones(n, bool)
     if kind in (LIGHT_POINT, LIGHT_SPOT):
         r = lights.radius[idx]
         v = c - p
         d2 = dot(v, v)
         dist = np.sqrt(d2)
-        to_c = v / np.maximum(dist, 1e-300)[:, None]
+        to_c = scale(v, 1.0 / np.maximum(dist, 1e-300))
         t_axis, b_axis = sampling.frame_from_z(to_c)
-        # Sphere: uniform in the cone it subtends, up to its near side along wi.
-        sin2 = np.minimum(np.divide(r * r, d2, out=np.ones_like(d2), where=d2 > 0), 1.0)
-        local, omc_max = sampling.sample_sphere_cone(u, sin2)
-        wi = np.where((r > 0)[:, None], sampling.to_world(local, t_axis, b_axis, to_c), to_c)
-        cos_t = local[:, 2]
-        t_hit = dist * cos_t - np.sqrt(np.maximum(r * r - d2 * (1.0 - cos_t * cos_t), 0.0))
-        t_hit = np.where(r > 0, t_hit, dist)
-        target = p + wi * t_hit[:, None]
-        pdf_dir = np.where(r > 0, np.divide(1.0, 2.0 * np.pi * omc_max, out=np.zeros(n), where=omc_max > 0), 1.0)
-        pdf_dir = np.where(d2 <= r * r, 0.0, pdf_dir)  # inside the sphere: nothing to sample
         soft = lights.soft[idx] & (r > 0)
-        if soft.any():  # disk facing p: uniform by area
-            xy = sampling.sample_concentric_disk(u[soft]) * r[soft, None]
-            y = c[soft] + xy[:, :1] * t_axis[soft] + xy[:, 1:2] * b_axis[soft]
-            wi[soft], pdf_dir[soft], target[soft] = area_to_solid_angle(
-                p[soft], y, -to_c[soft], np.pi * r[soft] ** 2, two_sided=False)
-        Le = lights.Le[idx] * np.where(r > 0, 1.0, 1.0 / np.maximum(d2, 1e-300))[:, None]
+
+        def disk(rows):  # soft: uniform by area on the disk through c facing p
+            xy = sampling.sample_concentric_disk(u[rows])
+            rr = r[rows]
+            y = c[rows] + scale(t_axis[rows], xy[:, 0] * rr) + scale(b_axis[rows], xy[:, 1] * rr)
+            return area_to_solid_angle(p[rows], y, -to_c[rows], np.pi * rr * rr, two_sided=False)
+
+        if soft.all():
+            wi, pdf_dir, target = disk(slice(None))
+        else:  # spheres (and delta points): uniform in the subtended cone, to the near side
+            sin2 = np.minimum(np.divide(r * r, d2, out=np.ones_like(d2), where=d2 > 0), 1.0)
+            local, omc_max = sampling.sample_sphere_cone(u, sin2)
+            wi = np.where((r > 0)[:, None], sampling.to_world(local, t_axis, b_axis, to_c), to_c)
+            cos_t = local[:, 2]
+            t_hit = dist * cos_t - np.sqrt(np.maximum(r * r - d2 * (1.0 - cos_t * cos_t), 0.0))
+            target = p + scale(wi, np.where(r > 0, t_hit, dist))
+            pdf_dir = np.where(r > 0, np.divide(1.0, 2.0 * np.pi * omc_max, out=np.zeros(n), where=omc_max > 0), 1.0)
+            pdf_dir = np.where(d2 <= r * r, 0.0, pdf_dir)  # inside the sphere: nothing to sample
+            if soft.any():
+                rows = np.flatnonzero(soft)
+                wi[rows], pdf_dir[rows], target[rows] = disk(rows)
+        Le = scale(take(lights.Le, idx), np.where(r > 0, 1.0, 1.0 / np.maximum(d2, 1e-300)))
         if kind == LIGHT_SPOT:
-            Le = Le * spot_attenuation(lights, idx, -wi)[:, None]
+            Le = scale(Le, spot_attenuation(lights, idx, -wi))
         return wi, Le, pdf_dir, target, finite
     if kind == LIGHT_SUN:
         z = frame[:, 2]
@@ -135,38 +141,39 @@ def sample_analytic(kind, lights: Lights, idx, p, u):
 
 def hit_analytic(kind, lights: Lights, i: int, o, d, tmax):
     """Rays o + t d (N) against analytic light i, 0 < t < tmax.
-    Returns hit (N,) bool, Le (N,3), pdf_dir (N,) solid-angle pdf of sampling that point."""
+    Returns hit (N,) bool, gain (N,) (the radiance is gain x Le[i]: spot attenuation, else 1)
+    and pdf_dir (N,), the solid-angle pdf of sampling that point."""
     n = len(o)
     c = lights.position[i]
     frame = lights.frame[i]
+    f = minus_point(o, c)  # light centre -> origin
+    gain = np.ones(n)
     if kind in (LIGHT_POINT, LIGHT_SPOT):
         r = lights.radius[i]
-        f = o - c
         f2 = dot(f, f)
         if lights.soft[i]:  # disk through c facing o
-            n_disk = f / np.sqrt(np.maximum(f2, 1e-300))[:, None]
-            cos_l = -dot(d, n_disk)
-            t = np.divide(f2 ** 0.5, cos_l, out=np.full(n, -1.0), where=cos_l > 0)
-            q = f + t[:, None] * d
-            hit = (cos_l > 0) & (dot(q, q) <= r * r) & (t > 0) & (t < tmax)
+            dist = np.sqrt(f2)
+            cos_l = -dot(d, f) / np.maximum(dist, 1e-300)
+            t = np.divide(dist, cos_l, out=np.full(n, -1.0), where=cos_l > 0)
+            # |f + t d|^2 = f2 + 2 t f.d + t^2 (d unit) without forming the point
+            q2 = f2 - 2.0 * t * cos_l * dist + t * t
+            hit = (cos_l > 0) & (q2 <= r * r) & (t > 0) & (t < tmax)
             pdf_dir = np.divide(t * t, np.pi * r * r * cos_l, out=np.zeros(n), where=hit)
         else:
             b = dot(f, d)
-            perp = f - b[:, None] * d
-            disc = r * r - dot(perp, perp)
+            disc = r * r - (f2 - b * b)  # r^2 - |perpendicular part of f|^2
             t = -b - np.sqrt(np.maximum(disc, 0.0))
             hit = (f2 > r * r) & (disc >= 0) & (t > 0) & (t < tmax)
             sin2 = np.minimum(r * r / np.maximum(f2, 1e-300), 1.0)
             omc = sin2 / (1.0 + np.sqrt(1.0 - sin2))
             pdf_dir = np.divide(1.0, 2.0 * np.pi * omc, out=np.zeros(n), where=omc > 0)
-        Le = np.broadcast_to(lights.Le[i], (n, 3)).copy()
         if kind == LIGHT_SPOT:
-            Le *= spot_attenuation(lights, i, -d)[:, None]  # from the light towards o
-        return hit, Le, pdf_dir
+            gain = spot_attenuation(lights, i, -d)  # from the light towards o
+        return hit, gain, pdf_dir
     z = frame[2]
     dz = d @ z
-    t = np.divide((c - o) @ z, dz, out=np.full(n, -1.0), where=dz != 0)
-    q = o + t[:, None] * d - c
+    t = np.divide(-(f @ z), dz, out=np.full(n, -1.0), where=dz != 0)
+    q = f + scale(d, t)
     x, y = q @ frame[0], q @ frame[1]
     hx, hy = lights.size[i]
     if kind == LIGHT_RECT:
@@ -178,11 +185,11 @@ def hit_analytic(kind, lights: Lights, i: int, o, d, tmax):
     # The emitting face looks along -z: a ray meets it travelling towards +z.
     hit = inside & (dz > 0) & (t > 0) & (t < tmax)
     pdf_dir = np.divide(t * t, a * dz, out=np.zeros(n), where=(dz > 0) & (a > 0))
-    return hit, np.broadcast_to(lights.Le[i], (n, 3)).copy(), pdf_dir
+    return hit, gain, pdf_dir
 
 
 def sun_hit(lights: Lights, i: int, d):
-    """Escaped directions d (N,3) inside sun i's cone: hit, Le, pdf_dir."""
+    """Escaped directions d (N,3) inside sun i's cone: hit, gain (1), pdf_dir (as hit_analytic)."""
     half = lights.sun_half_angle[i]
     n = len(d)
     if half <= 0:
@@ -191,4 +198,4 @@ def sun_hit(lights: Lights, i: int, d):
     # 1 - cos(angle to the axis) compared without cancellation via the chord length.
     chord2 = dot(d - lights.frame[i, 2], d - lights.frame[i, 2])
     hit = 0.5 * chord2 <= omc
-    return hit, np.broadcast_to(lights.Le[i], (n, 3)).copy(), np.full(n, 1.0 / (2.0 * np.pi * omc))
+    return hit, np.ones(n), np.full(n, 1.0 / (2.0 * np.pi * omc))
