@@ -236,7 +236,7 @@ class Closure:
         kind = self.pair_kind[pairs]
         r = np.flatnonzero(kind == LOBE_DIFFUSE)
         if len(r):
-            f[r] = diffuse.eval(self.color[pairs[r]], wi[r, 2])
+            f[r] = diffuse.eval(take(self.color, pairs[r]), wi[r, 2])
             pdf[r] = diffuse.pdf(wi[r, 2])
         r = np.flatnonzero(kind == LOBE_PHONG)
         if len(r):
@@ -260,16 +260,17 @@ class Closure:
             tint = np.where(reflected, self.tint[p], self.color[p]) * (wo[r, 2:3] > 0)
             f[r] = dielectric.eval_rough(self.alpha[p], self.ior[p], wo_o, wi_o) * tint
             pdf[r] = np.where(wo[r, 2] > 0, dielectric.pdf_rough(self.alpha[p], self.ior[p], wo_o, wi_o), 0.0)
-        return f * self.weight[pairs], pdf
+        return f * take(self.weight, pairs), pdf
 
     def _mixture(self, rows: np.ndarray, wi: np.ndarray):
         """f (K,3) and mixture pdf (K,) of the points `rows` (K,) for world directions wi (K,3)."""
         k = len(rows)
-        wi_local = _to_local(wi, self.t[rows], self.b[rows], self.ns[rows])
+        at = (lambda a: a) if k == self.n else (lambda a: take(a, rows))  # rows = all points?
+        wi_local = _to_local(wi, at(self.t), at(self.b), at(self.ns))
         # Reflection must stay on the geometric normal's side, refraction must cross it.
-        agree = (dot(wi, self.ng[rows]) > 0) == (wi_local[:, 2] > 0)
+        agree = (dot(wi, at(self.ng)) > 0) == (wi_local[:, 2] > 0)
         pairs, owner = self._pairs_of(rows)
-        f_pair, pdf_pair = self._eval_pairs(pairs, self.wo_local[rows[owner]], wi_local[owner])
+        f_pair, pdf_pair = self._eval_pairs(pairs, take(self.wo_local, rows[owner]), take(wi_local, owner))
         pdf_pair = self.pair_select[pairs] * pdf_pair
         if self.single:
             f = np.zeros((k, 3))
@@ -277,7 +278,7 @@ class Closure:
             f[owner], pdf[owner] = f_pair, pdf_pair
         else:
             f, pdf = _sum_by(owner, f_pair, k), np.bincount(owner, pdf_pair, minlength=k)
-        return np.where(agree[:, None], f, 0.0), np.where(agree, pdf, 0.0)
+        return scale(f, agree), np.where(agree, pdf, 0.0)
 
     def eval(self, wi: np.ndarray, rows: np.ndarray):
         """f (K,3) and solid-angle pdf (K,) at the points `rows` (K,) for directions wi (K,3)."""
@@ -322,7 +323,9 @@ class Closure:
         else:
             live, pick, share, u_branch = self._choose_lobes(u_lobe)
         kind = self.pair_kind[pick]
-        wo = self.wo_local[live]
+        everyone = len(live) == n
+        at = (lambda a: a) if everyone else (lambda a: take(a, live))
+        wo = at(self.wo_local)
         wi_local = np.zeros((len(live), 3))
         lobe_weight = np.zeros((len(live), 3))  # delta samples: weight / branch pmf
         branch = np.ones(len(live))  # delta samples: branch pmf
@@ -331,7 +334,7 @@ class Closure:
         # of the microfacet) is dropped, not re-weighted by the other lobes: the mixture pdf
         # counts only the samples each lobe keeps (seed 000: no redraw, zero contribution).
         kept = np.ones(len(live), bool)
-        uu = u[live]
+        uu = at(u)
 
         r = np.flatnonzero(kind == LOBE_DIFFUSE)
         wi_local[r] = diffuse.sample(uu[r])
@@ -377,7 +380,10 @@ class Closure:
             wi_local[r] = -wo[r]
             lobe_weight[r] = self.color[pick[r]]
 
-        wi[live] = sampling.to_world(wi_local, self.t[live], self.b[live], self.ns[live])
+        if everyone:
+            wi = sampling.to_world(wi_local, self.t, self.b, self.ns)
+        else:
+            wi[live] = sampling.to_world(wi_local, at(self.t), at(self.b), at(self.ns))
         # Delta samples: the chosen lobe alone, divided by its selection probability.
         d = np.flatnonzero(is_delta)
         if len(d):
@@ -393,14 +399,18 @@ class Closure:
         if len(s):
             rows = live[s]
             if self.single:  # the lobe alone: no need to gather the others
-                f, p = self._eval_pairs(pick[s], wo[s], wi_local[s])
-                agree = (dot(wi[rows], self.ng[rows]) > 0) == (wi_local[s, 2] > 0)
-                f, p = np.where(agree[:, None], f, 0.0), np.where(agree, p * share[s], 0.0)
+                f, p = self._eval_pairs(pick[s], take(wo, s), take(wi_local, s))
+                agree = (dot(take(wi, rows), take(self.ng, rows)) > 0) == (wi_local[s, 2] > 0)
+                f, p = scale(f, agree), np.where(agree, p * share[s], 0.0)
             else:
-                f, p = self._mixture(rows, wi[rows])
+                f, p = self._mixture(rows, take(wi, rows))
             cos = np.abs(wi_local[s, 2])
-            weight[rows] = np.divide(f * cos[:, None], p[:, None], out=np.zeros((len(s), 3)), where=(p > 0)[:, None])
-            pdf[rows] = p
+            w = scale(f, np.divide(cos, p, out=np.zeros(len(s)), where=p > 0))
+            if len(s) == n:
+                weight, pdf = w, p
+            else:
+                weight[rows] = w
+                pdf[rows] = p
         valid = (pdf > 0) & (max3(weight) > 0)
         return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=delta, valid=valid)
 
