@@ -13,6 +13,7 @@ Options (each defaults to the scene's own setting):
     --noise-target X     stop once the estimated relative noise falls to X (0 = off)
     --seed K             random seed (>= 0)
     --integrator NAME    e.g. path
+    --pattern NAME       sobol (Owen-scrambled Sobol, the default) or random (independent)
     --resolution WxH     frame size in pixels (resolution percentage becomes 100 %)
     --max-depth N        longest path (1..1024)
     --reference REF.exr  print relMSE (eps 1e-2) against this linear image (R, G, B
@@ -117,6 +118,8 @@ def build_parser(blend_required: bool) -> argparse.ArgumentParser:
                    help="stop once the estimated relative noise falls to this (0 = off)")
     p.add_argument("--seed", type=_non_negative_int, help="random seed")
     p.add_argument("--integrator", help="light transport method, e.g. path")
+    p.add_argument("--pattern", choices=("sobol", "random"),
+                   help="sample pattern: sobol (Owen-scrambled, the default) or random (independent)")
     p.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT in pixels")
     p.add_argument("--max-depth", type=_max_depth, help="longest light path (1..1024)")
     p.add_argument("--reference", help="linear EXR to print relMSE against while rendering")
@@ -278,6 +281,8 @@ def _apply_settings(scene, args) -> None:
         ember.seed = args.seed
     if args.max_depth is not None:
         ember.max_depth = args.max_depth
+    if args.pattern is not None:
+        ember.pattern = args.pattern.upper()
     if args.integrator is not None:
         items = {i.identifier: i for i in type(ember).bl_rna.properties["integrator"].enum_items}
         wanted = args.integrator.strip().upper()

@@ -409,6 +409,7 @@ class Settings:
     filter_width: float = 1.5  # pixels
     integrator: str = "path"
     strategy: str = "mis"
+    pattern: str = "sobol"  # rng.PATTERNS: Owen-scrambled Sobol (as Cycles) or "random"
     noise_target: float = 0.0  # stop when Film.noise() falls below it (0 = off)
     threads: int = 0  # 0 = all cores
 

@@ -22,6 +22,7 @@ import numpy as np
 from . import workers
 from .errors import Cancelled, EmberError
 from .film import Film
+from .rng import PATTERNS
 from .scene import FILTERS, INTEGRATORS, STRATEGIES, Scene
 from .tracer import BatchLayout, BatchTracer
 
@@ -89,6 +90,8 @@ def validate(scene: Scene) -> None:
         problems.append(f"filter width must be positive (got {s.filter_width})")
     if s.strategy not in STRATEGIES:
         problems.append(f"unknown strategy {s.strategy!r} (use one of {', '.join(STRATEGIES)})")
+    if s.pattern not in PATTERNS:
+        problems.append(f"unknown sampling pattern {s.pattern!r} (use one of {', '.join(PATTERNS)})")
     if not s.noise_target >= 0:
         problems.append(f"noise target must be >= 0 (got {s.noise_target})")
     if s.integrator not in INTEGRATORS:

@@ -50,5 +50,6 @@ class BatchTracer:
         layout = self.layout
         k = layout.batch_paths(batch)
         j = k % layout.n_pixels
-        sampler = Sampler(self.scene.settings.seed, layout.pixel[j], k // layout.n_pixels)
+        s = self.scene.settings
+        sampler = Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
         return self.integrator.render(sampler, layout.px[j], layout.py[j], stop)

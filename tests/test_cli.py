@@ -94,6 +94,7 @@ def _one_clear_line(stderr, *words):
     (["ok.blend", "--resolution", "0x32"], ["--resolution"]),
     (["ok.blend", "--time-limit", "-1"], ["--time-limit"]),
     (["ok.blend", "--max-depth", "0"], ["--max-depth"]),
+    (["ok.blend", "--pattern", "halton"], ["--pattern", "sobol", "random"]),
     (["ok.blend", "-o", "no/such/dir/out.png"], ["output directory does not exist"]),
     (["ok.blend", "-o", "ok.blend/out.png"], ["output directory does not exist"]),
     (["ok.blend", "-o", "out.jpg"], [".png or .exr"]),

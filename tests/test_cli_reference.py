@@ -33,9 +33,10 @@ def run(scenes, *args):
 
 @pytest.fixture(scope="module")
 def reference(scenes):
-    """A 16-sample render of ok.blend (seed 3) as the reference, 256x256: one pass is one
+    """A 16-sample render of ok.blend (seed 3, independent samples) as the reference, 256x256: one pass is one
     batch of 65536 paths, so each pass completes on its own and gets its progress line."""
-    code, out, err = run(scenes, "ok.blend", "-o", "ref.exr", "--samples", "16", "--seed", "3", *SIZE)
+    code, out, err = run(scenes, "ok.blend", "-o", "ref.exr", "--samples", "16", "--seed", "3",
+                         "--pattern", "random", *SIZE)
     assert code == 0, err
     return scenes / "ref.exr"
 
@@ -51,13 +52,14 @@ def _final_relmse(out):
 
 def test_relmse_falls_as_samples_grow(scenes, reference):
     code, out, err = run(scenes, "ok.blend", "-o", "x.exr", "--samples", "8", "--seed", "4",
-                         "--reference", reference, *SIZE)
+                         "--pattern", "random", "--reference", reference, *SIZE)
     assert code == 0, err
     lines = _progress_lines(out)
     counts = [n for n, _ in lines]
     assert len(lines) >= 2 and counts == sorted(set(counts)) and counts[-1] == 8, out
-    # Independent seeds, so E[relMSE] = v (1/n + 1/16) with v the per-sample relative
-    # variance: each line must follow that curve (fitted on the last one) to 25 %.
+    # Independent samples (--pattern random) and seeds, so E[relMSE] = v (1/n + 1/16) with v
+    # the per-sample relative variance: each line must follow that curve (fitted on the last
+    # one) to 25 %.
     v = lines[-1][1] / (1 / 8 + 1 / 16)
     for n, e in lines:
         assert e == pytest.approx(v * (1 / n + 1 / 16), rel=0.25), (n, e, lines)
@@ -68,7 +70,7 @@ def test_same_seed_matches_reference_exactly(scenes, reference):
     """Same seed and samples reproduce the reference: relMSE ~ 0 shows that rows, channels
     and pixels line up (float32 storage is the only difference)."""
     code, out, err = run(scenes, "ok.blend", "-o", "y.exr", "--samples", "16", "--seed", "3",
-                         "--reference", reference, *SIZE)
+                         "--pattern", "random", "--reference", reference, *SIZE)
     assert code == 0, err
     assert _final_relmse(out) < 1e-12
     assert re.search(r", noise \d+\.\d+", out.strip().splitlines()[-1])

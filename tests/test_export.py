@@ -575,6 +575,10 @@ def test_settings_from_ember_properties():
     assert (s.width, s.height, s.border) == (80, 60, (0, 0, 80, 60))
     assert (s.integrator, s.samples, s.max_depth, s.seed, s.time_limit, s.batch_size) == ("path", 128, 8, 5, 2.5, 1024)
     assert (s.filter, s.filter_width) == ("BLACKMAN_HARRIS", 1.5)  # no scene.cycles
+    assert s.pattern == "sobol"  # the default, also without scene.ember.pattern
+    assert export_settings(NS(render=render, ember=NS(pattern="RANDOM"))).pattern == "random"
+    with pytest.raises(EmberError, match="pattern"):
+        export_settings(NS(render=render), overrides=dict(pattern="halton"))
     s = export_settings(NS(render=render, ember=ember), overrides=dict(samples=3, max_depth=2))
     assert (s.samples, s.max_depth, s.seed) == (3, 2, 5)
     with pytest.raises(EmberError, match="Integrator"):

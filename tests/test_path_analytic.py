@@ -167,3 +167,14 @@ def test_cancel_with_worker_processes():
     session = RenderSession(furnace_box(samples=2000, width=24, height=24, batch_size=256, threads=2))
     stats = session.run(should_stop=lambda: calls.append(1) or len(calls) > 2)
     assert stats.cancelled and stats.samples < 2000
+
+
+def test_sobol_pattern_has_lower_error_than_independent_samples():
+    """Same scene, samples and seed: Owen-scrambled Sobol (the default) against independent
+    numbers, squared error against the exact 1. Measured ratio 0.30 at 64 spp (0.27-0.35 over
+    seeds 0-2), so 0.5 leaves room; both must stay unbiased (the other tests)."""
+    err = {}
+    for pattern in ("sobol", "random"):
+        mean, _, _ = render(sphere_with_point_light(radius=0.3, samples=64, width=12, height=12, pattern=pattern))
+        err[pattern] = float(((mean.mean(axis=2) - 1.0) ** 2).mean())
+    assert err["sobol"] < 0.5 * err["random"], err

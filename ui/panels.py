@@ -49,6 +49,7 @@ class EMBER_RENDER_PT_sampling(EmberRenderPanel, bpy.types.Panel):
         col.prop(settings, "time_limit")
         col.prop(settings, "noise_target")
         col.prop(settings, "seed")
+        col.prop(settings, "pattern")
 
 
 class EMBER_RENDER_PT_light_paths(EmberRenderPanel, bpy.types.Panel):

@@ -11,6 +11,12 @@ INTEGRATOR_ITEMS = [
 ]
 
 
+PATTERN_ITEMS = [
+    ('SOBOL', "Sobol-Burley", "Owen-scrambled Sobol sequence (as Cycles): lower noise per sample"),
+    ('RANDOM', "Independent", "Independent random numbers per sample (for studies)"),
+]
+
+
 class EmberSceneSettings(bpy.types.PropertyGroup):
     integrator: EnumProperty(
         name="Integrator",
@@ -43,6 +49,12 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
         description="Stop once the estimated relative noise (RMS over pixels of the standard "
                     "error of the mean over mean + 0.01) falls to this value (0 = off)",
         default=0.0, min=0.0, soft_max=0.1, step=0.1, precision=4,
+    )
+    pattern: EnumProperty(
+        name="Pattern",
+        description="Random number pattern used to place samples",
+        items=PATTERN_ITEMS,
+        default='SOBOL',
     )
     batch_size: IntProperty(
         name="Batch Size",

@@ -12,6 +12,7 @@ import dataclasses
 import numpy as np
 
 from ..errors import EmberError
+from ..rng import PATTERNS
 from ..scene import FILTERS, INTEGRATORS, Settings
 
 _DEFAULTS = Settings()
@@ -64,6 +65,8 @@ def _validate(s: Settings) -> None:
         raise EmberError(f"Pixel filter '{s.filter}' is not supported (choose one of: {', '.join(FILTERS)}).")
     if not s.filter_width > 0:
         raise EmberError("Pixel filter width must be positive.")
+    if s.pattern not in PATTERNS:
+        raise EmberError(f"Sampling pattern '{s.pattern}' is not supported (choose one of: {', '.join(PATTERNS)}).")
 
 
 def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings:
@@ -80,6 +83,8 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
             kw[name] = type(getattr(_DEFAULTS, name))(value)
     if ember is not None and getattr(ember, "integrator", None) is not None:
         kw["integrator"] = _integrator_name(ember.integrator)
+    if ember is not None and getattr(ember, "pattern", None) is not None:
+        kw["pattern"] = str(ember.pattern).lower()
 
     cycles = getattr(scene, "cycles", None)
     filt = getattr(cycles, "pixel_filter_type", None) if cycles is not None else None
@@ -101,6 +106,8 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
             kw[name] = tuple(int(v) for v in value)
         elif name == "filter":
             kw[name] = str(value).upper()
+        elif name == "pattern":
+            kw[name] = str(value).lower()
         else:
             kw[name] = type(getattr(_DEFAULTS, name))(value)
 

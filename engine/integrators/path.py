@@ -28,8 +28,12 @@ from ..errors import Cancelled
 from ..lights.light_set import LightSet
 from ..scene import Scene
 
-# Random dimensions: 0 pixel filter, then _DIMS per bounce.
-_DIMS = 8
+# Random-number groups (rng.Sampler): 0 the pixel filter, then per bounce _GROUPS groups:
+# light (lanes 0-1 the point on the light, 2 its choice), BSDF (0-1 the direction, 2 the
+# lobe) and Russian roulette. A group's lanes are stratified jointly under "sobol", so each
+# 2D sample gets the best-distributed pair of lanes.
+_GROUPS = 3
+_LIGHT, _BSDF, _RR = 0, 1, 2
 
 
 
@@ -79,7 +83,7 @@ class PathTracer:
                 raise Cancelled()
             if len(idx) == 0:
                 break
-            base = 1 + _DIMS * depth
+            base = 1 + _GROUPS * depth
             hit = self.accel.intersect(o32, d, tmax, skip)
             camera_ray = np.full(len(idx), depth == 0)
             # Light objects the ray passes on its way (they do not stop it).
@@ -128,8 +132,8 @@ class PathTracer:
             if len(active) and self.use_nee and not self.lights.empty:
                 all_active = len(active) == m
                 at = (lambda a: a) if all_active else (lambda a: take(a, active))
-                ls = self.lights.sample(at(hit_p), sampler.get(base, idx[active]),
-                                        sampler.get(base + 1, idx[active], 2))
+                u_light = sampler.get(base + _LIGHT, idx[active], 3)
+                ls = self.lights.sample(at(hit_p), u_light[:, 2], u_light[:, :2])
                 f, pdf_b = bsdf.eval(ls.wi, active)
                 cos_i = np.abs(dot(ls.wi, at(ns)))
                 pdf_b_mis = q[active] * pdf_b if self.mis else 0.0
@@ -144,8 +148,9 @@ class PathTracer:
                     lit = np.flatnonzero(~blocked)
                     _accumulate(L, idx[rows[lit]], take(contrib, test[lit]))
             # BSDF sampling continues the path; Russian roulette with survival q.
-            bs = bsdf.sample(sampler.get(base + 2, idx, 2), sampler.get(base + 4, idx))
-            survive = bs.valid & (sampler.get(base + 3, idx) < q)
+            u_bsdf = sampler.get(base + _BSDF, idx, 3)
+            bs = bsdf.sample(u_bsdf[:, :2], u_bsdf[:, 2])
+            survive = bs.valid & (sampler.get(base + _RR, idx) < q)
             beta = beta * scale(bs.weight, np.divide(1.0, q, out=np.zeros(m), where=survive))
             survive &= max3(beta) > 0
             keep = np.flatnonzero(survive)
