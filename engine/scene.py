@@ -452,7 +452,10 @@ class Scene:
                    "camera": Camera, "settings": Settings}[part.name]
             kw = {}
             for f in fields(cls):
-                v = data[f"{part.name}.{f.name}"]
+                key = f"{part.name}.{f.name}"
+                if key not in data.files and f.default is not dataclasses.MISSING:
+                    continue  # saved before the field existed: its default
+                v = data[key]
                 if f.default is None and v.shape == () and v.dtype.kind == "f" and np.isnan(v):
                     v = None  # saved as NaN (an optional array that was absent)
                 elif v.dtype == object:
