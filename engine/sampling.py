@@ -286,6 +286,10 @@ class Distribution1D:
         lo = self.cdf[index]
         return np.clip(_safe_div(u - lo, self.cdf[index + 1] - lo), 0.0, ONE_MINUS_EPSILON)
 
+    def sample_index(self, u):
+        """Bin index (N,) int64 from u (N,) in [0, 1) (sample_discrete without the extras)."""
+        return self._bin_of_u(np.asarray(u, dtype=np.float64))
+
     def sample_discrete(self, u):
         """Bin index (N,) int64, its pmf (N,), and u remapped into [0, 1) for reuse, from u (N,)."""
         u = _as_u(u, 1)

@@ -29,11 +29,11 @@ from ..lights.light_set import LightSet
 from ..scene import Scene
 
 # Random-number groups (rng.Sampler): 0 the pixel filter, then per bounce _GROUPS groups:
-# light (lanes 0-1 the point on the light, 2 its choice), BSDF (0-1 the direction, 2 the
-# lobe) and Russian roulette. A group's lanes are stratified jointly under "sobol", so each
-# 2D sample gets the best-distributed pair of lanes.
-_GROUPS = 3
-_LIGHT, _BSDF, _RR = 0, 1, 2
+# light (lanes 0-1 the point on the light, 2 its choice) and BSDF (0-1 the direction, 2 the
+# lobe, 3 Russian roulette). A group's lanes are stratified jointly under "sobol", so each
+# 2D sample gets the best-distributed pair of lanes (0, 1).
+_GROUPS = 2
+_LIGHT, _BSDF = 0, 1
 
 
 
@@ -148,9 +148,9 @@ class PathTracer:
                     lit = np.flatnonzero(~blocked)
                     _accumulate(L, idx[rows[lit]], take(contrib, test[lit]))
             # BSDF sampling continues the path; Russian roulette with survival q.
-            u_bsdf = sampler.get(base + _BSDF, idx, 3)
+            u_bsdf = sampler.get(base + _BSDF, idx, 4)
             bs = bsdf.sample(u_bsdf[:, :2], u_bsdf[:, 2])
-            survive = bs.valid & (sampler.get(base + _RR, idx) < q)
+            survive = bs.valid & (u_bsdf[:, 3] < q)
             beta = beta * scale(bs.weight, np.divide(1.0, q, out=np.zeros(m), where=survive))
             survive &= max3(beta) > 0
             keep = np.flatnonzero(survive)

@@ -20,7 +20,7 @@ import numpy as np
 
 from .. import sampling
 from ..scene import LIGHT_SUN, Lights, Materials, Mesh, World
-from ..vec import scale, take
+from ..vec import max3, scale, take
 from . import environment, shapes
 
 
@@ -98,7 +98,8 @@ class LightSet:
     def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray) -> LightSample:
         """One light sample per shading point p (N,3) float64; u_select (N,), u (N,2)."""
         n = len(p)
-        index, pmf, _ = self.select.sample_discrete(u_select)
+        index = self.select.sample_index(u_select)
+        pmf = self.select.pmf(index)
         out = {}  # field -> (N,...) array; every row belongs to exactly one kind of light
 
         def put(rows, **values):
@@ -138,7 +139,7 @@ class LightSet:
         wi, Le, pdf_dir, target, finite = (out[k] for k in ("wi", "Le", "pdf_dir", "target", "finite"))
         delta = self.delta[index]
         pdf = np.where(delta, pmf, pmf * pdf_dir)
-        valid = (pdf > 0) & np.isfinite(pdf) & (avg(Le) > 0)
+        valid = (pdf > 0) & np.isfinite(pdf) & (max3(Le) > 0)
         return LightSample(wi=wi, Le=Le, pdf=np.where(valid, pdf, 0.0), delta=delta, target=target,
                            target_prim=target_prim, finite=finite, valid=valid)
 
