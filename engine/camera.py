@@ -10,6 +10,7 @@ import numpy as np
 
 from . import sampling
 from .scene import Camera, Settings
+from .vec import normalize, scale
 
 
 def generate_rays(camera: Camera, settings: Settings, px: np.ndarray, py: np.ndarray, u_filter: np.ndarray):
@@ -29,12 +30,11 @@ def generate_rays(camera: Camera, settings: Settings, px: np.ndarray, py: np.nda
         o_cam = np.stack([x, y, np.full(n, -camera.clip_start)], axis=1)
         cos_axis = np.ones(n)
     else:
-        d_cam = np.stack([x, y, -np.ones(n)], axis=1)
-        d_cam = d_cam / np.linalg.norm(d_cam, axis=1, keepdims=True)
-        cos_axis = -d_cam[:, 2]
-        o_cam = d_cam * (camera.clip_start / cos_axis)[:, None]
+        inv_len = 1.0 / np.sqrt(x * x + y * y + 1.0)
+        d_cam = np.stack([x * inv_len, y * inv_len, -inv_len], axis=1)
+        cos_axis = inv_len
+        o_cam = scale(d_cam, camera.clip_start / cos_axis)
     o = o_cam @ rot.T + eye
-    d = d_cam @ rot.T
-    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    d = normalize(d_cam @ rot.T)  # rot may carry the object's scale
     tmax = (camera.clip_end - camera.clip_start) / cos_axis
     return o, d, tmax

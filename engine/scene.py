@@ -404,7 +404,7 @@ class Settings:
     rr_depth: int = 3
     seed: int = 0
     time_limit: float = 0.0  # seconds, 0 = none
-    batch_size: int = 1 << 16
+    batch_size: int = 1 << 17
     filter: str = "BLACKMAN_HARRIS"
     filter_width: float = 1.5  # pixels
     integrator: str = "path"

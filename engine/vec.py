@@ -21,7 +21,7 @@ def length(a: np.ndarray) -> np.ndarray:
 
 def normalize(a: np.ndarray) -> np.ndarray:
     n = length(a)
-    return a / np.where(n > 0, n, 1.0)[:, None]
+    return scale(a, 1.0 / np.where(n > 0, n, 1.0))
 
 
 def take(a: np.ndarray, rows: np.ndarray) -> np.ndarray:

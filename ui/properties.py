@@ -59,7 +59,7 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
     batch_size: IntProperty(
         name="Batch Size",
         description="Rays traced together in one wavefront; bigger is faster but uses more memory",
-        default=65536, min=1024, soft_max=1 << 20,
+        default=131072, min=1024, soft_max=1 << 20,
     )
 
 

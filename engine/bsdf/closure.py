@@ -462,7 +462,7 @@ class LambertClosure:
 def make_closure(scene: Scene, lambert_albedo: np.ndarray, mat, ns, ng, wo, prim, bary):
     """LambertClosure when every point's material is plain Lambertian, else the general Closure.
     lambert_albedo: plain_lambert_albedo(scene.materials), computed once per render."""
-    albedo = lambert_albedo[mat]
+    albedo = take(lambert_albedo, mat)
     if not np.isnan(albedo).any():
         return LambertClosure(albedo, ns, ng)
     return Closure(scene, mat, ns, ng, wo, prim, bary)

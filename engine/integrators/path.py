@@ -56,6 +56,12 @@ class PathTracer:
         self.materials = scene.materials
         self.emissive_material = scene.materials.emission.mean(axis=1) > 0
         self.lambert_albedo = plain_lambert_albedo(scene.materials)
+        # Flat-shaded meshes (all corner normals of every triangle equal): no interpolation.
+        normals = scene.mesh.normals.astype(np.float64)
+        self.flat_normal = None
+        if len(normals) and np.all(normals == normals[:, :1]):
+            n0 = normals[:, 0]
+            self.flat_normal = n0 / np.maximum(length(n0), 1e-300)[:, None]
         self.max_depth = scene.settings.max_depth
         self.rr_depth = scene.settings.rr_depth
         strategy = scene.settings.strategy
@@ -116,7 +122,7 @@ class PathTracer:
             wo = -d
             side = np.where(dot(ng, wo) >= 0, 1.0, -1.0)
             ng_f = scale(ng, side)
-            ns = interpolate(bary, take(mesh.normals, prim))
+            ns = interpolate(bary, take(mesh.normals, prim)) if self.flat_normal is None else take(self.flat_normal, prim)
             ns_len = length(ns)
             ns = scale(ns, side / np.maximum(ns_len, 1e-300))
             bad = (ns_len <= 1e-12) | (dot(ns, ng_f) <= 0)  # degenerate or below the surface
