@@ -22,11 +22,18 @@ class Film:
 
     def add(self, pixel: np.ndarray, L: np.ndarray) -> None:
         """Add one sample per entry; pixel (N,) flat indices (unique within one call)."""
-        bad = ~np.isfinite(L).all(axis=1)
-        if bad.any():
-            L = np.where(bad[:, None], 0.0, L)
+        finite = np.isfinite(L)
+        bad = 0
+        if not finite.all():
+            rows = ~finite.all(axis=1)
+            bad = int(rows.sum())
+            L = np.where(rows[:, None], 0.0, L)
+        # A pass over a full frame (or a border row) is a run of consecutive pixels: slices
+        # then replace the much slower fancy-indexed read-modify-write.
+        if len(pixel) and pixel[-1] - pixel[0] == len(pixel) - 1 and np.all(np.diff(pixel) == 1):
+            pixel = slice(int(pixel[0]), int(pixel[-1]) + 1)
         with self._lock:
-            self.nonfinite += int(bad.sum())
+            self.nonfinite += bad
             self.sum[pixel] += L
             self.sum_sq[pixel] += L * L
             self.count[pixel] += 1
@@ -53,10 +60,14 @@ class Film:
         rgba[..., 3] = (self.count.reshape(self.height, self.width) > 0)
         return rgba
 
-    def noise(self, region=None) -> float:
-        """Relative noise estimate: RMS over pixels of stddev(mean) / (mean + 0.01)."""
-        m = self.mean().mean(axis=2)
-        v = self.variance_of_mean().mean(axis=2)
+    def noise(self) -> float:
+        """Relative noise estimate: RMS over pixels of stddev(mean) / (mean + 0.01), from the
+        sample variance within each pixel. Exact in expectation for independent samples; an
+        upper bound under the Sobol pattern, whose samples of a pixel are stratified (its real
+        error is lower, 0.3x the variance at 64 samples in tests/test_path_analytic.py)."""
+        m, v = self.mean(), self.variance_of_mean()
+        m = (m[..., 0] + m[..., 1] + m[..., 2]) / 3.0
+        v = (v[..., 0] + v[..., 1] + v[..., 2]) / 3.0
         ok = np.isfinite(v)
         if not ok.any():
             return float("inf")

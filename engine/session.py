@@ -27,6 +27,7 @@ from .scene import FILTERS, INTEGRATORS, STRATEGIES, Scene
 from .tracer import BatchLayout, BatchTracer
 
 UPDATE_INTERVAL = 0.25
+NOISE_INTERVAL = 1.0
 
 
 @dataclass
@@ -151,7 +152,7 @@ class RenderSession:
         embree_seconds = 0.0
         cancelled = False
         last_update = t0
-        noise = None
+        noise, noise_time = None, t0
 
         def samples_done():
             return paths_added // layout.n_pixels
@@ -200,8 +201,10 @@ class RenderSession:
                     embree_seconds += batch_embree
                     next_add += 1
                 pass_completed = samples_done() > before
-                if pass_completed:
-                    noise = self.film.noise()
+                # The estimate costs a pass over the film: every pass when it can stop the
+                # render, else at most once per NOISE_INTERVAL (it is only shown).
+                if pass_completed and (s.noise_target > 0 or time.perf_counter() - noise_time >= NOISE_INTERVAL):
+                    noise, noise_time = self.film.noise(), time.perf_counter()
                 if pass_completed or time.perf_counter() - last_update >= UPDATE_INTERVAL:
                     report(pass_completed)
         finally:
@@ -216,7 +219,7 @@ class RenderSession:
             stopped_by = "cancel"
         elif paths_added < layout.total_paths:
             stopped_by = "noise target" if s.noise_target > 0 and noise is not None and noise <= s.noise_target else "time limit"
-        if samples_done() and noise is None:
+        if samples_done():
             noise = self.film.noise()
         return RenderStats(samples=samples_done(), elapsed=elapsed, rays=rays, rays_per_second=rays / max(elapsed, 1e-9),
                            embree_seconds=embree_seconds, build_seconds=self.build_seconds, cancelled=cancelled,

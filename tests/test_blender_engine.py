@@ -483,8 +483,8 @@ def test_properties_defaults_and_limits():
     sc = bpy.data.scenes.new("EmberProps")
     try:
         e = sc.ember
-        assert (e.integrator, e.samples, e.max_depth, e.seed, e.time_limit, e.batch_size) == \
-            ('PATH', 64, 64, 0, 0.0, 65536)
+        assert (e.integrator, e.samples, e.max_depth, e.seed, e.time_limit, e.batch_size, e.pattern) == \
+            ('PATH', 64, 64, 0, 0.0, 131072, 'SOBOL')
         props = type(e).bl_rna.properties
         assert props["samples"].hard_min == 1
         assert (props["max_depth"].hard_min, props["max_depth"].hard_max) == (1, 1024)

@@ -33,8 +33,8 @@ def run(scenes, *args):
 
 @pytest.fixture(scope="module")
 def reference(scenes):
-    """A 16-sample render of ok.blend (seed 3, independent samples) as the reference, 256x256: one pass is one
-    batch of 65536 paths, so each pass completes on its own and gets its progress line."""
+    """A 16-sample render of ok.blend (seed 3, independent samples) as the reference, 256x256:
+    a batch of 131072 paths is two passes, so progress lines come every two passes or more."""
     code, out, err = run(scenes, "ok.blend", "-o", "ref.exr", "--samples", "16", "--seed", "3",
                          "--pattern", "random", *SIZE)
     assert code == 0, err
