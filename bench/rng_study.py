@@ -23,6 +23,9 @@ import numpy as np  # noqa: E402
 from ember.engine import rng  # noqa: E402
 from ember.engine.rng import Sampler  # noqa: E402
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
+from test_rng import _rms_errors as errors, _slope as slope  # noqa: E402  (the tests' own measure)
+
 
 def best_time(fns, repeats, inner=5):
     """Best mean time (s) of each function over `repeats` interleaved rounds of `inner` calls."""
@@ -93,36 +96,16 @@ def disk(x, y):
 DISK_INTEGRAL = np.pi * 0.16
 
 
-def errors(pattern, f, exact, n_max, pixels, seed=11, dim=2):
-    """RMS over pixels of the error of the mean of the first N samples, N = 1, 2, 4 .. n_max."""
-    pix = np.repeat(np.arange(pixels), n_max)
-    smp = np.tile(np.arange(n_max), pixels)
-    u = Sampler(seed, pix, smp, pattern=pattern).get(dim, None, 2)
-    v = f(u[:, 0], u[:, 1]).reshape(pixels, n_max)
-    ns = 2 ** np.arange(int(np.log2(n_max)) + 1)
-    return ns, np.array([np.sqrt(np.mean((v[:, :n].mean(axis=1) - exact) ** 2)) for n in ns])
-
-
-def slope(ns, e, lo, hi):
-    m = (ns >= lo) & (ns <= hi)
-    return np.polyfit(np.log(ns[m]), np.log(e[m]), 1)[0]
-
-
 def convergence():
-    print("smooth f = exp(-x) sin(3y) + xy, 2000 pixels:")
-    ns, er = errors("random", smooth, SMOOTH_INTEGRAL, 1024, 2000)
-    _, es = errors("sobol", smooth, SMOOTH_INTEGRAL, 1024, 2000)
-    for n, a, b in zip(ns, er, es):
-        if n >= 16:
-            print(f"  N={n:5d}: rms random {a:.3e}  sobol {b:.3e}  ratio {b / a:.4f}")
-    print(f"  slopes N=16..1024: random {slope(ns, er, 16, 1024):.3f}, sobol {slope(ns, es, 16, 1024):.3f}")
-    print("disk indicator (centre 0.5, radius 0.4), 2000 pixels:")
-    ns, er = errors("random", disk, DISK_INTEGRAL, 1024, 2000)
-    _, es = errors("sobol", disk, DISK_INTEGRAL, 1024, 2000)
-    for n, a, b in zip(ns, er, es):
-        if n >= 16:
-            print(f"  N={n:5d}: rms random {a:.3e}  sobol {b:.3e}  ratio {b / a:.4f}")
-    print(f"  slopes N=16..1024: random {slope(ns, er, 16, 1024):.3f}, sobol {slope(ns, es, 16, 1024):.3f}")
+    for label, f, exact in (("smooth f = exp(-x) sin(3y) + xy", smooth, SMOOTH_INTEGRAL),
+                            ("disk indicator (centre 0.5, radius 0.4)", disk, DISK_INTEGRAL)):
+        print(f"{label}, 2000 pixels:")
+        ns, er = errors("random", f, exact, 1024, 2000)
+        _, es = errors("sobol", f, exact, 1024, 2000)
+        for n, a, b in zip(ns, er, es):
+            if n >= 16:
+                print(f"  N={n:5d}: rms random {a:.3e}  sobol {b:.3e}  ratio {b / a:.4f}")
+        print(f"  slopes N=16..1024: random {slope(ns, er, 16, 1024):.3f}, sobol {slope(ns, es, 16, 1024):.3f}")
     # The slope over several seeds and groups: how much the fitted exponent varies.
     s = [slope(*errors("sobol", disk, DISK_INTEGRAL, 1024, 1000, seed=sd, dim=d), 16, 1024)
          for sd in range(4) for d in (0, 5)]
