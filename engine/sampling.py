@@ -59,8 +59,10 @@ def frame_from_z(n):
     sign = np.copysign(1.0, z)
     a = -1.0 / (sign + z)  # sign + z has |.| >= 1, never 0
     xy_a = x * y * a
-    t = np.stack([1.0 + sign * x * x * a, sign * xy_a, -sign * x], axis=-1)
-    b = np.stack([xy_a, sign + y * y * a, -y], axis=-1)
+    t = np.empty(n.shape)
+    b = np.empty(n.shape)
+    t[..., 0], t[..., 1], t[..., 2] = 1.0 + sign * x * x * a, sign * xy_a, -sign * x
+    b[..., 0], b[..., 1], b[..., 2] = xy_a, sign + y * y * a, -y
     return t, b
 
 
@@ -122,15 +124,22 @@ def sample_concentric_disk(u):
 
     Area pdf: pdf_concentric_disk(). Low distortion: strata of u stay compact on the disk.
     """
-    u = _as_u(u, 2)
+    r, phi = _concentric_polar(_as_u(u, 2))
+    out = np.empty((len(r), 2))
+    out[:, 0], out[:, 1] = r * np.cos(phi), r * np.sin(phi)
+    return out
+
+
+def _concentric_polar(u):
+    """Radius (signed) and angle of the concentric map: the square ring of the larger
+    coordinate becomes a circle ring, the ratio of the two coordinates the angle."""
     a = 2.0 * u[:, 0] - 1.0
     b = 2.0 * u[:, 1] - 1.0
     x_major = np.abs(a) > np.abs(b)
-    # Square ring -> circle ring: r is the larger coordinate, the angle the ratio of the two.
     r = np.where(x_major, a, b)
-    ratio = np.where(x_major, _safe_ratio(b, a), _safe_ratio(a, b))
-    phi = np.where(x_major, 0.25 * np.pi * ratio, 0.5 * np.pi - 0.25 * np.pi * ratio)
-    return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=-1)
+    ratio = _safe_ratio(np.where(x_major, b, a), r)
+    phi = (0.25 * np.pi) * np.where(x_major, ratio, 2.0 - ratio)
+    return r, phi
 
 
 def _safe_ratio(num, den):
@@ -148,9 +157,11 @@ def sample_cosine_hemisphere(u):
 
     u = (0, 0) maps to the rim of the disk, i.e. the horizon, where the pdf is 0.
     """
-    d = sample_concentric_disk(u)
-    z = np.sqrt(np.maximum(0.0, 1.0 - d[:, 0] ** 2 - d[:, 1] ** 2))
-    return np.concatenate([d, z[:, None]], axis=-1)
+    r, phi = _concentric_polar(_as_u(u, 2))
+    out = np.empty((len(r), 3))
+    out[:, 0], out[:, 1] = r * np.cos(phi), r * np.sin(phi)
+    out[:, 2] = np.sqrt(np.maximum(0.0, 1.0 - r * r))  # x^2 + y^2 = r^2
+    return out
 
 
 def pdf_cosine_hemisphere(cos_theta):
