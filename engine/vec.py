@@ -31,6 +31,8 @@ def take(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
 
 def scale(v: np.ndarray, s) -> np.ndarray:
     """v * s[:, None] for v (N,k), s (N,), one contiguous pass per column."""
+    if len(v) < 4096:  # small: one broadcast beats three calls
+        return v * np.asarray(s)[:, None]
     out = np.empty(v.shape, np.result_type(v, s))
     for k in range(v.shape[1]):
         np.multiply(v[:, k], s, out=out[:, k])

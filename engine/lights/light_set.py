@@ -112,11 +112,14 @@ class LightSet:
                 out[key][rows] = v
 
         def rows_of(mask):
+            if mask is np.True_:
+                return np.arange(n), slice(None)
             rows = np.flatnonzero(mask)
             return rows, (rows if len(rows) < n else slice(None))  # (indices, what to gather with)
 
-        is_tri = (index >= self.n_analytic) & (index < self.n_analytic + len(self.tri_prim))
-        is_env = index == self.env_index
+        only_triangles = self.n_analytic == 0 and self.env is None
+        is_tri = np.True_ if only_triangles else (index >= self.n_analytic) & (index < self.n_analytic + len(self.tri_prim))
+        is_env = np.False_ if only_triangles else index == self.env_index
         if is_env.any():
             rows, r = rows_of(is_env)
             wi, Le, pdf_dir, _ = self.env.sample(u[r])
