@@ -91,11 +91,7 @@ class Film:
         if self._block_noise is not None and self.passes >= 4:
             m, e = self._block_noise
             return float(e * np.sqrt(m / self.passes))
-        with self._lock:
-            n = self.count[:, None].astype(np.float64)
-            mean = self.sum / np.maximum(n, 1)
-            var = (self.sum_sq - n * mean * mean) / np.maximum(n - 1, 1) / np.maximum(n, 1)
-        return _relative_rms(mean, np.where(n >= 2, np.maximum(var, 0.0), np.inf), self.count > 0)
+        return _relative_rms(self.mean().reshape(-1, 3), self.variance_of_mean().reshape(-1, 3), self.count > 0)
 
 
 def _relative_rms(mean: np.ndarray, err2: np.ndarray, rendered: np.ndarray) -> float:

@@ -30,7 +30,7 @@ import numpy as np
 from .. import sampling, textures
 from ..scene import (FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET,
                      LOBE_PHONG, LOBE_TRANSPARENT, Scene)
-from ..vec import dot, max3, normalize, scale, take
+from ..vec import dot, gatherer, max3, normalize, scale, take
 from . import dielectric, diffuse, fresnel, layering, microfacet, phong
 
 # Smallest lobe-selection estimate, relative to the lobe's weight: a lobe whose albedo
@@ -265,7 +265,7 @@ class Closure:
     def _mixture(self, rows: np.ndarray, wi: np.ndarray):
         """f (K,3) and mixture pdf (K,) of the points `rows` (K,) for world directions wi (K,3)."""
         k = len(rows)
-        at = (lambda a: a) if k == self.n else (lambda a: take(a, rows))  # rows = all points?
+        at = gatherer(rows, self.n)
         wi_local = _to_local(wi, at(self.t), at(self.b), at(self.ns))
         # Reflection must stay on the geometric normal's side, refraction must cross it.
         agree = (dot(wi, at(self.ng)) > 0) == (wi_local[:, 2] > 0)
@@ -324,7 +324,7 @@ class Closure:
             live, pick, share, u_branch = self._choose_lobes(u_lobe)
         kind = self.pair_kind[pick]
         everyone = len(live) == n
-        at = (lambda a: a) if everyone else (lambda a: take(a, live))
+        at = gatherer(live, n)
         wo = at(self.wo_local)
         wi_local = np.zeros((len(live), 3))
         lobe_weight = np.zeros((len(live), 3))  # delta samples: weight / branch pmf
@@ -445,7 +445,7 @@ class LambertClosure:
         self.t, self.b = sampling.frame_from_z(ns)
 
     def eval(self, wi: np.ndarray, rows: np.ndarray):
-        at = (lambda a: a) if len(rows) == len(self.ns) else (lambda a: take(a, rows))
+        at = gatherer(rows, len(self.ns))
         cos_i = np.where(dot(wi, at(self.ng)) > 0, dot(wi, at(self.ns)), 0.0)
         return diffuse.eval(at(self.albedo), cos_i), diffuse.pdf(cos_i)
 

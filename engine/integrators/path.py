@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..vec import dot, interpolate, length, max3, scale, take
+from ..vec import dot, gatherer, interpolate, length, max3, scale, take
 
 from .. import camera as camera_mod
 from ..accel import Accel, offset_origin
@@ -136,8 +136,7 @@ class PathTracer:
             # Next-event estimation at points whose BSDF has a non-delta part.
             active = np.flatnonzero(bsdf.has_smooth)
             if len(active) and self.use_nee and not self.lights.empty:
-                all_active = len(active) == m
-                at = (lambda a: a) if all_active else (lambda a: take(a, active))
+                at = gatherer(active, m)
                 u_light = sampler.get(base + _LIGHT, idx[active], 3)
                 ls = self.lights.sample(at(hit_p), u_light[:, 2], u_light[:, :2])
                 f, pdf_b = bsdf.eval(ls.wi, active)
