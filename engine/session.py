@@ -20,10 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import workers
-from .errors import Cancelled, EmberError
+from .errors import Cancelled
+from .validation import has_light, validate
 from .film import Film
-from .rng import PATTERNS
-from .scene import FILTERS, INTEGRATORS, STRATEGIES, Scene
+from .scene import Scene
 from .tracer import BatchLayout, BatchTracer
 
 UPDATE_INTERVAL = 0.25
@@ -69,38 +69,6 @@ class RenderStats:
         return self.embree_seconds / max(self.elapsed * max(self.processes, 1), 1e-9)
 
 
-def validate(scene: Scene) -> None:
-    s = scene.settings
-    problems = []
-    if s.width < 1 or s.height < 1:
-        problems.append(f"resolution must be at least 1x1 (got {s.width}x{s.height})")
-    x0, y0, x1, y1 = s.border
-    if not (0 <= x0 < x1 <= s.width and 0 <= y0 < y1 <= s.height):
-        problems.append(f"render border {s.border} is empty or outside the {s.width}x{s.height} frame")
-    if s.samples < 1:
-        problems.append(f"samples must be at least 1 (got {s.samples})")
-    if s.max_depth < 0:
-        problems.append(f"max depth must be >= 0 (got {s.max_depth})")
-    if s.time_limit < 0:
-        problems.append(f"time limit must be >= 0 (got {s.time_limit})")
-    if s.batch_size < 1:
-        problems.append(f"batch size must be positive (got {s.batch_size})")
-    if s.filter not in FILTERS:
-        problems.append(f"unknown pixel filter {s.filter!r} (use one of {', '.join(FILTERS)})")
-    if not s.filter_width > 0:
-        problems.append(f"filter width must be positive (got {s.filter_width})")
-    if s.strategy not in STRATEGIES:
-        problems.append(f"unknown strategy {s.strategy!r} (use one of {', '.join(STRATEGIES)})")
-    if s.pattern not in PATTERNS:
-        problems.append(f"unknown sampling pattern {s.pattern!r} (use one of {', '.join(PATTERNS)})")
-    if not s.noise_target >= 0:
-        problems.append(f"noise target must be >= 0 (got {s.noise_target})")
-    if s.integrator not in INTEGRATORS:
-        problems.append(f"unknown integrator {s.integrator!r} (use one of {', '.join(INTEGRATORS)})")
-    if problems:
-        raise EmberError("Invalid render settings: " + "; ".join(problems))
-
-
 class RenderSession:
     def __init__(self, scene: Scene):
         validate(scene)
@@ -116,7 +84,7 @@ class RenderSession:
         # Embree, light tables and the integrator live where the tracing happens: here, or in
         # each worker only (not here too: an 8k environment table is hundreds of MB).
         self.tracer = None if self.processes else BatchTracer(scene)
-        if not _has_light(scene):
+        if not has_light(scene):
             self.warnings.append("The scene has no lights, no emissive materials and a black world: "
                                  "the image will be black.")
         self.build_seconds = time.perf_counter() - t0
@@ -233,9 +201,3 @@ class RenderSession:
         rays0, embree0 = accel.rays, accel.embree_seconds
         L = self.tracer.trace(batch, stop)
         return L, accel.rays - rays0, accel.embree_seconds - embree0
-
-
-def _has_light(scene: Scene) -> bool:
-    world = scene.world
-    return (len(scene.lights) > 0 or bool(np.any(scene.materials.emission > 0))
-            or bool(np.max(world.color) > 0 and (getattr(world, "image", None) is None or np.max(world.image) > 0)))
