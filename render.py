@@ -21,7 +21,9 @@ Options (each defaults to the scene's own setting):
     --no-progress        no progress bar on stderr
 
 The .blend is only read: settings are changed on the loaded copy in memory and nothing
-is saved. Exit codes: 0 done, 1 render failed, 2 bad input (file, option, scene),
+is saved. The image is written to a hidden temporary file beside the output, checked, and
+renamed into place: a failed write (full disk, permission) exits 1 and leaves a previous
+file at that path untouched. Exit codes: 0 done, 1 render failed, 2 bad input (file, option, scene),
 130 interrupted (Ctrl-C; a second Ctrl-C stops at once).
 
 Design: the render goes through bpy.ops.render.render with the EMBER engine, the same
@@ -33,11 +35,13 @@ product rather than a parallel path. It follows the render through final.listene
 from __future__ import annotations
 
 import argparse
+import os
 import pathlib
 import shutil
 import signal
 import sys
 import math
+import tempfile
 import time
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -150,14 +154,16 @@ def _check_output(path: pathlib.Path) -> str:
         raise UsageError(f"output path is a directory: {path}")
     if not parent.is_dir():
         raise UsageError(f"output directory does not exist: {parent}")
-    existed = path.exists()
-    try:  # really try: permission bits say little for root or read-only file systems
-        with open(path, "ab"):
-            pass
+    if path.exists() and not os.access(path, os.W_OK):
+        raise UsageError(f"output path is not writable: {path}")
+    # The image is written beside it and renamed into place: the directory must take a new
+    # file. Really try: permission bits say little for root or read-only file systems.
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.probe-", dir=parent)
+        os.close(fd)
+        os.unlink(probe)
     except OSError as e:
         raise UsageError(f"output path is not writable: {path} ({e.strerror or e})")
-    if not existed:
-        path.unlink()
     return kind
 
 
@@ -401,19 +407,31 @@ def run(argv: list[str]) -> int:
     active = bpy.context.view_layer.name if bpy.context.view_layer else None
     layer = active if active in follower.layers else next(iter(follower.layers))
     stats, image, border = follower.layers[layer]
+    from ember.engine import imageio
+    imageio.remove_stale_temporaries(output)  # left by a render killed while writing
     try:
         if kind == ".exr":
-            from ember.engine import imageio
             if image is None:
-                raise RuntimeError("no film")
+                raise imageio.OutputError(f"could not write {output}: nothing was rendered")
             if scene.render.use_border and scene.render.use_crop_to_border:
                 x0, y0, x1, y1 = border
                 image = image[y0:y1, x0:x1]
-            imageio.write_rgba_exr(output, image)
+            imageio.save_rgba_exr(output, image)
         else:
-            bpy.data.images["Render Result"].save_render(filepath=str(output.resolve()), scene=scene)
-    except (OSError, RuntimeError) as e:
-        print(f"render.py: error: could not write {output}: {_clean_blender_error(e)}", file=sys.stderr)
+            result = bpy.data.images["Render Result"]
+
+            def save_png(tmp):
+                result.save_render(filepath=str(pathlib.Path(tmp).resolve()), scene=scene)
+
+            size = None
+            if image is not None:  # the PNG is the film's size, or the border's when cropped
+                size = (image.shape[1], image.shape[0])
+                if scene.render.use_border and scene.render.use_crop_to_border:
+                    x0, y0, x1, y1 = border
+                    size = (x1 - x0, y1 - y0)
+            imageio.write_atomically(output, save_png, lambda tmp: imageio.check_png(tmp, size))
+    except imageio.OutputError as e:
+        print(f"render.py: error: {e}", file=sys.stderr)
         return EXIT_FAILED
     if len(follower.layers) > 1 and kind == ".exr":
         print(f"note: {len(follower.layers)} view layers rendered; {output} holds '{layer}'",

@@ -12,16 +12,30 @@ Header attributes (`header=` of `write_exr`): str stays a string attribute; bool
 **float32** (OpenEXR's Python binding has no scalar double) - pass a string when more
 digits matter; lists, tuples and dicts are stored as JSON strings; other ints as strings.
 Names the EXR format owns (channels, compression, dataWindow, ...) cannot be set.
+
+Safe output (`write_atomically`): a file is written to a temporary file in its own
+directory, checked (EXR read back, PNG parsed to its last chunk), flushed to disk and only
+then renamed over the destination with `os.replace`. A failure (full disk, permission,
+a writer that reports success after a short write) raises `OutputError` and leaves any
+previous file at the destination untouched and no temporary file; a killed process leaves
+at most one hidden `.<name>.ember-tmp-<pid>-*` file, which `remove_stale_temporaries`
+deletes once its process is gone.
 """
 from __future__ import annotations
 
+import errno
 import json
 import os
-from typing import Iterable
+import pathlib
+import struct
+import tempfile
+import zlib
+from typing import Callable, Iterable
 
 import numpy as np
 
-__all__ = ["write_exr", "read_exr", "write_rgba_exr", "read_rgb"]
+__all__ = ["write_exr", "read_exr", "write_rgba_exr", "read_rgb", "OutputError", "write_atomically",
+           "check_png", "check_exr", "remove_stale_temporaries", "save_rgba_exr"]
 
 # Attributes that write_exr sets itself or the format derives from the pixels.
 _RESERVED = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder",
@@ -127,3 +141,179 @@ def read_rgb(path: str | os.PathLike, prefix: str = "") -> np.ndarray:
     if missing:
         raise KeyError(f"{path}: no channels {missing}; has {sorted(channels)}")
     return np.stack([channels[prefix + c].astype(np.float32) for c in "RGB"], axis=-1)
+
+
+# ---- safe output ------------------------------------------------------------------------------
+
+class OutputError(Exception):
+    """An output file could not be written; the message is one line for the user."""
+
+
+_TMP_TAG = ".ember-tmp-"
+
+
+def _reason(e: BaseException) -> str:
+    """One line saying why a write failed (writers word a full disk in several ways)."""
+    text = str(e).strip().splitlines()
+    text = text[-1] if text else type(e).__name__
+    if (isinstance(e, OSError) and e.errno == errno.ENOSPC) or "no space left" in text.lower():
+        return "no space left on the device"
+    if isinstance(e, OSError) and e.strerror:
+        return e.strerror[0].lower() + e.strerror[1:]
+    return text
+
+
+def _file_mode() -> int:
+    """Permissions a plainly created file would get (0666 minus the umask)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def write_atomically(path: str | os.PathLike, write: Callable[[str], None],
+                     check: Callable[[str], None] | None = None) -> None:
+    """Create `path` through a temporary file in the same directory.
+
+    write(tmp) writes the whole file at the path it is given (it keeps the destination's
+    extension, for writers that choose the format by it); check(tmp) raises if the result is
+    not a complete file (a writer may report success after a short write). Then the data
+    is fsync'ed and the temporary renamed over `path` in one step. Raises OutputError with
+    a one-line reason; the destination is unchanged and the temporary removed on any
+    failure, also on KeyboardInterrupt.
+    """
+    path = pathlib.Path(path)
+    directory = path.parent if str(path.parent) else pathlib.Path(".")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}{_TMP_TAG}{os.getpid()}-", suffix=path.suffix,
+                                   dir=directory)
+        os.close(fd)
+    except OSError as e:
+        raise OutputError(f"could not write {path}: {_reason(e)}") from e
+    try:
+        try:
+            write(tmp)
+            size = os.path.getsize(tmp)
+            if size == 0:
+                raise OSError(errno.EIO, "the writer produced an empty file")
+            if check is not None:
+                check(tmp)
+            os.chmod(tmp, _file_mode())
+            fd = os.open(tmp, os.O_RDONLY)
+            try:
+                os.fsync(fd)  # the data is on disk before the name points at it
+            finally:
+                os.close(fd)
+            os.replace(tmp, path)
+        except (OSError, RuntimeError, ValueError, KeyError, zlib.error, struct.error) as e:
+            reason = _reason(e).replace(tmp, str(path))
+            if not isinstance(e, OSError) and _disk_full(directory):  # a silent short write
+                reason = f"no space left on the device ({reason})"
+            raise OutputError(f"could not write {path}: {reason}") from e
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def _disk_full(directory, margin: int = 1 << 16) -> bool:
+    try:
+        st = os.statvfs(directory)
+    except (OSError, AttributeError):
+        return False
+    return st.f_bavail * st.f_frsize < margin
+
+
+def remove_stale_temporaries(path: str | os.PathLike) -> int:
+    """Delete temporaries of `path` left by processes that no longer run (killed during a
+    write). Returns how many were removed."""
+    path = pathlib.Path(path)
+    directory = path.parent if str(path.parent) else pathlib.Path(".")
+    prefix = f".{path.name}{_TMP_TAG}"
+    removed = 0
+    try:
+        names = [n for n in os.listdir(directory) if n.startswith(prefix)]
+    except OSError:
+        return 0
+    for name in names:
+        pid_text = name[len(prefix):].split("-", 1)[0]
+        if not pid_text.isdigit() or _process_alive(int(pid_text)):
+            continue
+        try:
+            os.unlink(directory / name)
+            removed += 1
+        except OSError:
+            pass
+    return removed
+
+
+def _process_alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+_PNG_CHANNELS = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}
+
+
+def check_png(path: str | os.PathLike, size: tuple[int, int] | None = None) -> None:
+    """Raise ValueError unless `path` is a complete PNG: every chunk whole with a correct CRC,
+    IHDR first, IEND last, the image data inflating to exactly the rows IHDR promises and,
+    if given, size == (width, height)."""
+    data = pathlib.Path(path).read_bytes()
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError("not a PNG file")
+    pos, ihdr, idat, ended = 8, None, [], False
+    while pos + 12 <= len(data):
+        n, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + n]
+        if len(body) < n or pos + 12 + n > len(data):
+            break
+        (crc,) = struct.unpack(">I", data[pos + 8 + n:pos + 12 + n])
+        if zlib.crc32(kind + body) != crc:
+            raise ValueError(f"PNG chunk {kind!r} is corrupt")
+        if ihdr is None and kind != b"IHDR":
+            raise ValueError("PNG does not start with IHDR")
+        if kind == b"IHDR":
+            ihdr = struct.unpack(">IIBBBBB", body)
+        elif kind == b"IDAT":
+            idat.append(body)
+        elif kind == b"IEND":
+            ended = True
+            break
+        pos += 12 + n
+    if not ended or ihdr is None:
+        raise ValueError("the PNG file is truncated")
+    w, h, depth, ctype, _, _, interlace = ihdr
+    if size is not None and (w, h) != tuple(size):
+        raise ValueError(f"the PNG is {w}x{h}, expected {size[0]}x{size[1]}")
+    if interlace == 0 and ctype in _PNG_CHANNELS:
+        row = (w * _PNG_CHANNELS[ctype] * depth + 7) // 8 + 1  # filter byte + samples
+        inflater = zlib.decompressobj()
+        got = sum(len(inflater.decompress(b)) for b in idat) + len(inflater.flush())
+        if got != row * h or not inflater.eof:
+            raise ValueError("the PNG image data is incomplete")
+
+
+def check_exr(path: str | os.PathLike, shape: tuple[int, int] | None = None) -> None:
+    """Raise unless `path` reads back as an EXR whose channels all have shape (H, W)."""
+    channels, _ = read_exr(path)
+    if not channels:
+        raise ValueError("the EXR file has no channels")
+    for name, ch in channels.items():
+        if shape is not None and ch.shape != tuple(shape):
+            raise ValueError(f"EXR channel {name!r} is {ch.shape}, expected {tuple(shape)}")
+
+
+def save_rgba_exr(path: str | os.PathLike, image: np.ndarray, header: dict | None = None) -> None:
+    """write_rgba_exr through write_atomically, checked by reading the file back."""
+    img = np.asarray(image)
+    write_atomically(path, lambda tmp: write_rgba_exr(tmp, img, header),
+                     lambda tmp: check_exr(tmp, img.shape[:2]))
