@@ -122,7 +122,8 @@ def cornell(spps, seeds):
     import re
 
     import render  # noqa: F401  (repository root)
-    from ember.engine import tracer, workers
+    from ember.engine.integrators import path as tracer  # where the Sampler is made
+    from ember.engine.parallel import workers
     root = pathlib.Path(__file__).resolve().parents[1]
     workers.can_spawn = lambda: False
     spent = [0.0]

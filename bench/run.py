@@ -244,7 +244,7 @@ def main(argv=None):
     from _bootstrap import load_ember
     ember = load_ember()
     ember.register()
-    from ember.engine.scene import INTEGRATORS
+    from ember.engine.integrators import NAMES as INTEGRATORS
     integrators = [i.strip() for i in args.integrators.split(",")] if args.integrators else list(INTEGRATORS)
     unknown = sorted(set(integrators) - set(INTEGRATORS))
     if unknown:

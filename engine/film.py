@@ -29,6 +29,9 @@ class Film:
         self.passes = 0  # completed passes (end_pass)
         self._snapshot = None  # (passes, sum) at the last power of two; float32 halves its memory
         self._block_noise = None  # (M, noise of the M-pass mean) from the last two snapshots
+        # (H*W,3) radiance added to the mean (an integrator's term that is not a mean of
+        # samples: progressive photon mapping's photon estimate), or None.
+        self.overlay = None
 
     def add(self, pixel: np.ndarray, L: np.ndarray) -> None:
         """Add one sample per entry; pixel (N,) flat indices (unique within one call)."""
@@ -52,6 +55,8 @@ class Film:
         """(H,W,3) float64 mean radiance (0 where no samples)."""
         with self._lock:
             m = self.sum / np.maximum(self.count, 1)[:, None]
+            if self.overlay is not None:
+                m += self.overlay
         return m.reshape(self.height, self.width, 3)
 
     def variance_of_mean(self) -> np.ndarray:

@@ -37,6 +37,12 @@ _M2 = np.uint64(0x94D049BB133111EB)
 _K_SAMPLE = np.uint64(0xD1B54A32D192ED03)
 _K_DIM = np.uint64(0xAEF17502108EF2D9)
 _K_GROUP = np.uint64(0xDB4F0B9175AE2165)  # sobol: Weyl step per group (differs from _K_DIM)
+_K_DOMAIN = np.uint64(0x8CB92BA72F3D8DD7)  # separates the streams of different domains
+
+# Domains: independent streams for different kinds of paths. A camera path's numbers are those
+# of domain 0 (unchanged since before domains existed); photon paths use pixel = photon path
+# index within its pass and sample = pass; gather rays their own stream per camera sample.
+CAMERA, PHOTONS, GATHER = 0, 1, 2
 
 PATTERNS = ("sobol", "random")
 
@@ -191,7 +197,8 @@ def sobol_reversed(index, k: int = 4) -> np.ndarray:
 
 
 class Sampler:
-    """Uniform numbers for a batch of N paths, path i belonging to (pixel[i], sample[i]).
+    """Uniform numbers for a batch of N paths, path i belonging to (pixel[i], sample[i]) of
+    stream `domain` (CAMERA, PHOTONS, GATHER: independent of each other).
 
     `get(dim, rows=None, k=1)` returns float64 in [0, 1), shape (len(rows),) for k = 1 or
     (len(rows), k), for the paths `rows` (all when None). Dimensions are small integers the
@@ -200,12 +207,15 @@ class Sampler:
     a pixel's samples (put quantities sampled together in one group); "random" is i.i.d.
     """
 
-    def __init__(self, seed: int, pixel: np.ndarray, sample: np.ndarray, pattern: str = "sobol"):
+    def __init__(self, seed: int, pixel: np.ndarray, sample: np.ndarray, pattern: str = "sobol",
+                 domain: int = CAMERA):
         if pattern not in PATTERNS:
             raise ValueError(f"unknown sampling pattern {pattern!r} (expected one of {PATTERNS})")
         self.pattern = pattern
         with np.errstate(over="ignore"):
             key = _mix(np.uint64(seed & 0xFFFFFFFFFFFFFFFF) * _GOLDEN + _GOLDEN)
+            if domain != CAMERA:
+                key = _mix(key ^ (np.uint64(domain) * _K_DOMAIN))
             pixel_key = _mix(key ^ (np.asarray(pixel, np.uint64) * _GOLDEN))
             if pattern == "random":
                 self.key = pixel_key ^ (np.asarray(sample, np.uint64) * _K_SAMPLE)

@@ -49,7 +49,6 @@ LIGHT_RECT = 3
 LIGHT_DISK = 4  # disk or ellipse
 
 FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
-INTEGRATORS = ("path",)
 # Direct-light strategies: both combined by MIS (default), or one alone (for studies and the
 # strategy-agreement tests; each alone is unbiased too, where it can reach the light).
 STRATEGIES = ("mis", "bsdf", "light")

@@ -1,10 +1,14 @@
-"""A render: build the acceleration structures once, then progressive full-frame passes.
+"""A render: build once, then run the integrator's stages until it is done or stopped.
 
-Each pass gives every pixel of the border one more sample; the work (samples x pixels) is
-cut into batches of `Settings.batch_size` paths, traced by worker processes (one per core,
-engine/workers.py) or, for small renders, by one thread of this process. Results are added
-to the film in batch order, and random numbers depend only on (seed, pixel, sample), so the
-same seed gives the same image whatever the timing or the number of workers.
+An integrator (engine/integrators/) is a sequence of rounds of stages. Each stage is a
+number of independent work items, run by worker processes (one per core,
+engine/parallel/workers.py) or, for small renders, by one thread of this process. A film
+stage's items are batches of `Settings.batch_size` flat path indices (pass-major: every
+pixel of the border gets one more sample per pass); their radiance goes to the film in item
+order. A publish stage's results are reduced in item order by the integrator and the arrays
+published read-only to every worker (shared memory) before the next stage starts. Random
+numbers depend only on (seed, domain, stage, item/pixel, sample), so the same seed gives the
+same image whatever the timing or the number of workers.
 
 The caller's thread is the only one that calls `on_update` and `should_stop` (Blender's
 API is not thread-safe), at least every `UPDATE_INTERVAL` seconds.
@@ -15,16 +19,19 @@ import os
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import workers
+from . import integrators
 from .errors import Cancelled
-from .validation import has_light, validate
 from .film import Film
+from .integrators.base import Stage
+from .parallel import workers
+from .parallel.shared import Publisher
 from .scene import Scene
-from .tracer import BatchLayout, BatchTracer
+from .tracer import Tracer
+from .validation import has_light, validate
 
 UPDATE_INTERVAL = 0.25
 NOISE_INTERVAL = 1.0
@@ -41,6 +48,7 @@ class Progress:
     pass_completed: bool
     noise: float | None
     film: Film
+    stage: str = "pixels"  # the stage running now
 
 
 @dataclass
@@ -56,12 +64,19 @@ class RenderStats:
     nonfinite: int
     stopped_by: str = ""  # "", "cancel", "time limit" or "noise target"
     processes: int = 0  # worker processes used (0: traced in the render process)
+    stage_seconds: dict = field(default_factory=dict)  # stage name -> wall seconds (all rounds)
+    counters: dict = field(default_factory=dict)  # the integrator's figures (photons stored, ...)
 
     def summary(self) -> str:
         state = {"cancel": "cancelled", "": "done"}.get(self.stopped_by, f"stopped at the {self.stopped_by}")
         noise = f" | noise {self.noise:.4f}" if self.noise is not None and np.isfinite(self.noise) else ""
+        stages = ""
+        if len(self.stage_seconds) > 1:
+            stages = " | " + ", ".join(f"{name} {sec:.2f} s" for name, sec in self.stage_seconds.items())
+        counters = "".join(f" | {text}" for text in self.counters.values())
         return (f"Ember {state}: {self.samples} samples in {self.elapsed:.2f} s | "
-                f"{self.rays_per_second / 1e6:.2f} M rays/s | Embree {self.embree_share:.0%} of render time{noise}")
+                f"{self.rays_per_second / 1e6:.2f} M rays/s | Embree {self.embree_share:.0%} of render time{noise}"
+                f"{stages}{counters} | {self.nonfinite} non-finite samples")
 
     @property
     def embree_share(self) -> float:
@@ -76,23 +91,26 @@ class RenderSession:
         self.scene = scene
         s = scene.settings
         self.warnings: list[str] = []
-        self.layout = BatchLayout(scene)
+        self.integrator = integrators.create(scene)  # the render-process side: stages, reduce
+        self.layout = self.integrator.layout
         self.film = Film(s.width, s.height)
         cores = s.threads or os.cpu_count() or 1
-        # Worker processes pay ~1 s to start; worth it only for renders of several batches.
-        self.processes = cores if cores > 1 and self.layout.n_batches >= 2 * cores and workers.can_spawn() else 0
-        # Embree, light tables and the integrator live where the tracing happens: here, or in
-        # each worker only (not here too: an 8k environment table is hundreds of MB).
-        self.tracer = None if self.processes else BatchTracer(scene)
+        # Worker processes pay ~1 s to start; worth it only for renders of several items.
+        self.processes = (cores if cores > 1 and self.integrator.work_items() >= 2 * cores and workers.can_spawn()
+                          else 0)
+        # Embree, light tables and the integrator's tracing side live where the tracing
+        # happens: here, or in each worker only (not here too: an 8k environment table is
+        # hundreds of MB).
+        self.tracer = None if self.processes else Tracer(scene)
         if not has_light(scene):
             self.warnings.append("The scene has no lights, no emissive materials and a black world: "
                                  "the image will be black.")
         self.build_seconds = time.perf_counter() - t0
 
-    def _add(self, batch: int, L: np.ndarray) -> None:
-        """Add a batch to the film, one pass segment at a time (pixels unique per segment)."""
+    def _add(self, stage: Stage, item: int, L: np.ndarray) -> None:
+        """Add a film item to the film, one pass segment at a time (pixels unique per segment)."""
         n_pixels = self.layout.n_pixels
-        k = self.layout.batch_paths(batch)
+        k = self.layout.paths(stage, item)
         cut = 0
         while cut < len(k):
             seg_end = min(len(k), cut + n_pixels - k[cut] % n_pixels)
@@ -103,101 +121,175 @@ class RenderSession:
 
     def run(self, on_update=None, should_stop=None) -> RenderStats:
         s = self.scene.settings
-        layout = self.layout
-        stop = threading.Event()
         t0 = time.perf_counter()
+        run = _Run(self, on_update, should_stop, t0)
         if self.processes:
-            pool = workers.WorkerPool(self.scene, self.processes)
-            submit, in_flight = pool.submit, 2 * self.processes
+            backend = _Processes(self.scene, self.processes)
         else:
-            pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ember")
-
-            def submit(batch):
-                return pool.submit(self._trace_here, batch, stop)
-            in_flight = 2
+            backend = _InProcess(self.tracer, run.stop)
+        publisher = Publisher()
         self.build_seconds += time.perf_counter() - t0
-        pending = {}  # future -> batch index
-        finished = {}  # batch index -> radiance, waiting for its turn (film order is fixed)
-        next_add = submitted = paths_added = rays = 0
-        embree_seconds = 0.0
-        cancelled = False
-        last_update = t0
-        noise, noise_time = None, t0
-
-        def samples_done():
-            return paths_added // layout.n_pixels
-
-        def report(pass_completed):
-            nonlocal last_update
-            if on_update is not None:
-                elapsed = time.perf_counter() - t0
-                on_update(Progress(samples_done(), s.samples, paths_added / layout.total_paths, elapsed, rays,
-                                   rays / max(elapsed, 1e-9), pass_completed, noise, self.film))
-            last_update = time.perf_counter()
-
         try:
-            while next_add < layout.n_batches:
-                if should_stop is not None and not cancelled and should_stop():
-                    cancelled = True
-                    stop.set()
-                    if self.processes:
-                        break  # workers are killed below; nothing more is added
-                out_of_time = s.time_limit > 0 and time.perf_counter() - t0 >= s.time_limit
-                # The noise estimate needs a few passes to mean anything.
-                out_of_time |= s.noise_target > 0 and samples_done() >= 4 and noise is not None and noise <= s.noise_target
-                if not stop.is_set() and not out_of_time:
-                    while len(pending) < in_flight and submitted < layout.n_batches:
-                        pending[submit(submitted)] = submitted
-                        submitted += 1
-                if not pending:
+            version, round_ = 0, 0
+            while not run.ended:
+                stages = self.integrator.stages(round_)
+                if not stages:
                     break
-                done, _ = wait(pending, timeout=UPDATE_INTERVAL, return_when=FIRST_COMPLETED)
-                for fut in done:
-                    b = pending.pop(fut)
-                    try:
-                        finished[b] = fut.result()
-                    except Cancelled:
-                        finished[b] = None
-                before = samples_done()
-                while next_add in finished:
-                    result = finished.pop(next_add)
-                    if result is None:  # cancelled mid-batch: nothing after it is added either
-                        next_add = layout.n_batches
+                for stage in stages:
+                    t_stage = time.perf_counter()
+                    results = run.stage(stage, backend)
+                    run.stage_seconds[stage.name] = run.stage_seconds.get(stage.name, 0.0) + time.perf_counter() - t_stage
+                    if results is None:  # stopped: cancel, time limit or noise target
                         break
-                    L, batch_rays, batch_embree = result
-                    self._add(next_add, L)
-                    paths_added += len(L)
-                    rays += batch_rays
-                    embree_seconds += batch_embree
-                    next_add += 1
-                pass_completed = samples_done() > before
-                # The estimate costs a pass over the film: every pass when it can stop the
-                # render, else at most once per NOISE_INTERVAL (it is only shown).
-                if pass_completed and (s.noise_target > 0 or time.perf_counter() - noise_time >= NOISE_INTERVAL):
-                    noise, noise_time = self.film.noise(), time.perf_counter()
-                if pass_completed or time.perf_counter() - last_update >= UPDATE_INTERVAL:
-                    report(pass_completed)
+                    if stage.publish:
+                        arrays = self.integrator.reduce(stage, results)
+                        version += 1
+                        backend.install(version, arrays, publisher)
+                    self.film.overlay = self.integrator.overlay()
+                round_ += 1
         finally:
-            if self.processes:
-                pool.close(kill=cancelled or bool(pending))
-            else:
-                stop.set()
-                pool.shutdown(wait=True)
+            backend.close(kill=run.cancelled or run.ended)
+            publisher.release()
         elapsed = time.perf_counter() - t0
         stopped_by = ""
-        if cancelled:
+        if run.cancelled:
             stopped_by = "cancel"
-        elif paths_added < layout.total_paths:
-            stopped_by = "noise target" if s.noise_target > 0 and noise is not None and noise <= s.noise_target else "time limit"
-        if samples_done():
-            noise = self.film.noise()
-        return RenderStats(samples=samples_done(), elapsed=elapsed, rays=rays, rays_per_second=rays / max(elapsed, 1e-9),
-                           embree_seconds=embree_seconds, build_seconds=self.build_seconds, cancelled=cancelled,
-                           noise=noise, nonfinite=self.film.nonfinite, stopped_by=stopped_by,
-                           processes=self.processes)
+        elif run.ended:
+            stopped_by = "noise target" if run.noise_reached() else "time limit"
+        noise = self.film.noise() if run.samples_done() else run.noise
+        return RenderStats(samples=run.samples_done(), elapsed=elapsed, rays=run.rays,
+                           rays_per_second=run.rays / max(elapsed, 1e-9), embree_seconds=run.embree_seconds,
+                           build_seconds=self.build_seconds, cancelled=run.cancelled, noise=noise,
+                           nonfinite=self.film.nonfinite, stopped_by=stopped_by, processes=self.processes,
+                           stage_seconds=run.stage_seconds, counters=self.integrator.counters())
 
-    def _trace_here(self, batch: int, stop: threading.Event):
-        accel = self.tracer.accel
-        rays0, embree0 = accel.rays, accel.embree_seconds
-        L = self.tracer.trace(batch, stop)
-        return L, accel.rays - rays0, accel.embree_seconds - embree0
+
+class _Run:
+    """The bookkeeping of one RenderSession.run: stops, progress, the film's order."""
+
+    def __init__(self, session: RenderSession, on_update, should_stop, t0: float):
+        self.session, self.on_update, self.should_stop, self.t0 = session, on_update, should_stop, t0
+        self.settings = session.scene.settings
+        self.stop = threading.Event()
+        self.cancelled = False
+        self.ended = False  # stopped before the integrator was done (cancel, time, noise)
+        self.paths_added = self.rays = 0
+        self.embree_seconds = 0.0
+        self.noise, self.noise_time = None, t0
+        self.last_update = t0
+        self.stage_seconds: dict[str, float] = {}
+
+    def samples_done(self) -> int:
+        return self.paths_added // self.session.layout.n_pixels
+
+    def noise_reached(self) -> bool:
+        s = self.settings
+        return s.noise_target > 0 and self.noise is not None and self.noise <= s.noise_target
+
+    def report(self, stage: Stage, pass_completed: bool) -> None:
+        if self.on_update is not None:
+            elapsed = time.perf_counter() - self.t0
+            fraction = self.paths_added / max(self.session.integrator.film_paths(), 1)
+            self.on_update(Progress(self.samples_done(), self.settings.samples, fraction, elapsed, self.rays,
+                                    self.rays / max(elapsed, 1e-9), pass_completed, self.noise, self.session.film,
+                                    stage.name))
+        self.last_update = time.perf_counter()
+
+    def stage(self, stage: Stage, backend) -> list | None:
+        """Run every item of `stage`; the items' results in order (film stages: []), or None
+        if the render stopped before the stage was complete."""
+        s, film = self.settings, self.session.film
+        pending = {}  # future -> item
+        finished = {}  # item -> result, waiting for its turn (order is fixed)
+        results = []
+        next_done = submitted = 0
+        while next_done < stage.items:
+            if self.should_stop is not None and not self.cancelled and self.should_stop():
+                self.cancelled = self.ended = True
+                self.stop.set()
+                if backend.processes:
+                    break  # workers are killed by the caller; nothing more is used
+            out_of_time = s.time_limit > 0 and time.perf_counter() - self.t0 >= s.time_limit
+            # The noise estimate needs a few passes to mean anything.
+            out_of_time |= self.samples_done() >= 4 and self.noise_reached()
+            if not self.stop.is_set() and not out_of_time:
+                while len(pending) < backend.in_flight and submitted < stage.items:
+                    pending[backend.submit(stage, submitted)] = submitted
+                    submitted += 1
+            if not pending:
+                break
+            done, _ = wait(pending, timeout=UPDATE_INTERVAL, return_when=FIRST_COMPLETED)
+            for fut in done:
+                item = pending.pop(fut)
+                try:
+                    finished[item] = fut.result()
+                except Cancelled:
+                    finished[item] = None
+            before = self.samples_done()
+            while next_done in finished:
+                result = finished.pop(next_done)
+                if result is None:  # cancelled mid-item: nothing after it is used either
+                    self.ended = True
+                    next_done = stage.items + 1
+                    break
+                data, item_rays, item_embree = result
+                if stage.film:
+                    self.session._add(stage, next_done, data)
+                    self.paths_added += len(data)
+                else:
+                    results.append(data)
+                self.rays += item_rays
+                self.embree_seconds += item_embree
+                next_done += 1
+            pass_completed = self.samples_done() > before
+            # The estimate costs a pass over the film: every pass when it can stop the
+            # render, else at most once per NOISE_INTERVAL (it is only shown).
+            if pass_completed and (s.noise_target > 0 or time.perf_counter() - self.noise_time >= NOISE_INTERVAL):
+                self.noise, self.noise_time = film.noise(), time.perf_counter()
+            if pass_completed or time.perf_counter() - self.last_update >= UPDATE_INTERVAL:
+                self.report(stage, pass_completed)
+        if next_done != stage.items:
+            self.ended = True
+            return None
+        return results
+
+
+class _InProcess:
+    """Items run one at a time on a thread of this process (small renders, Blender's binary)."""
+
+    processes = 0
+    in_flight = 2
+
+    def __init__(self, tracer: Tracer, stop: threading.Event):
+        self.tracer, self.stop = tracer, stop
+        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ember")
+
+    def submit(self, stage: Stage, item: int):
+        return self.pool.submit(self.tracer.run, stage, item, self.stop)
+
+    def install(self, version: int, arrays: dict, publisher) -> None:
+        for a in arrays.values():
+            a.flags.writeable = False  # the same contract as shared memory
+        self.tracer.integrator.install(version, arrays)
+
+    def close(self, kill: bool) -> None:
+        self.stop.set()
+        self.pool.shutdown(wait=True)
+
+
+class _Processes:
+    """Items run in worker processes; published arrays go through shared memory."""
+
+    def __init__(self, scene: Scene, n: int):
+        self.pool = workers.WorkerPool(scene, n)
+        self.processes = n
+        self.in_flight = 2 * n
+
+    def submit(self, stage: Stage, item: int):
+        return self.pool.submit(stage, item)
+
+    def install(self, version: int, arrays: dict, publisher: Publisher) -> None:
+        self.pool.install(version, publisher.publish(arrays))
+
+    def close(self, kill: bool) -> None:
+        self.pool.close(kill=kill)

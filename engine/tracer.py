@@ -1,9 +1,10 @@
-"""Work layout and batch tracing.
+"""Work layout and the tracing context of a process.
 
-`BatchLayout`: the render's work is samples x border pixels in pass-major order, cut into
-fixed-size batches (cheap; the render process needs only this when workers trace).
-`BatchTracer`: everything built once to trace batches - Embree scene, lights, integrator -
-in the render process or, identically, in every worker process.
+`BatchLayout`: film work is samples x border pixels in pass-major order (flat path index
+k: pass k // pixels, pixel k % pixels), cut into fixed-size batches (cheap; the render
+process needs only this when workers trace).
+`Tracer`: everything built once per process that traces - Embree scene, lights, the
+integrator's tracing side - in the render process or, identically, in every worker.
 """
 from __future__ import annotations
 
@@ -11,9 +12,9 @@ import numpy as np
 
 from .accel import Accel
 from .allocator import keep_freed_memory
-from .integrators.path import PathTracer
+from .integrators import create
+from .integrators.base import Stage, TraceContext
 from .lights.light_set import LightSet
-from .rng import Sampler
 from .scene import Scene
 
 
@@ -29,27 +30,25 @@ class BatchLayout:
         self.total_paths = s.samples * self.n_pixels
         self.n_batches = -(-self.total_paths // s.batch_size)
 
-    def batch_paths(self, batch: int) -> np.ndarray:
-        """Flat work indices k (pass = k // n_pixels, pixel = k % n_pixels) of a batch."""
-        return np.arange(batch * self.batch_size, min((batch + 1) * self.batch_size, self.total_paths))
+    def paths(self, stage: Stage, item: int) -> np.ndarray:
+        """Flat path indices k of item `item` of a film stage."""
+        first = stage.start + item * self.batch_size
+        return np.arange(first, min(first + self.batch_size, stage.stop))
 
 
-class BatchTracer:
+class Tracer:
     def __init__(self, scene: Scene):
         keep_freed_memory()  # in whichever process traces
         s = scene.settings
         self.scene = scene
-        self.layout = BatchLayout(scene)
         self.accel = Accel(scene.mesh)
-        self.lights = LightSet(scene.lights, scene.mesh, scene.materials, scene.world, self.accel,
-                               self.accel.scene_radius, s.strategy)
-        self.integrator = PathTracer(scene, self.accel, self.lights)
+        lights = LightSet(scene.lights, scene.mesh, scene.materials, scene.world, self.accel,
+                          self.accel.scene_radius, s.strategy)
+        self.integrator = create(scene)
+        self.integrator.build(TraceContext(scene, self.accel, lights, self.integrator.layout))
 
-    def trace(self, batch: int, stop=None) -> np.ndarray:
-        """Radiance (N,3) of the batch's paths."""
-        layout = self.layout
-        k = layout.batch_paths(batch)
-        j = k % layout.n_pixels
-        s = self.scene.settings
-        sampler = Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
-        return self.integrator.render(sampler, layout.px[j], layout.py[j], stop)
+    def run(self, stage: Stage, item: int, stop=None):
+        """(result, rays, embree seconds) of one work item."""
+        rays0, embree0 = self.accel.rays, self.accel.embree_seconds
+        result = self.integrator.run(stage, item, stop)
+        return result, self.accel.rays - rays0, self.accel.embree_seconds - embree0

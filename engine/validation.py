@@ -8,7 +8,8 @@ import numpy as np
 
 from .errors import EmberError
 from .rng import PATTERNS
-from .scene import FILTERS, INTEGRATORS, STRATEGIES, Scene
+from .integrators import NAMES as INTEGRATORS
+from .scene import FILTERS, STRATEGIES, Scene
 
 
 def validate(scene: Scene) -> None:

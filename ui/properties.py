@@ -6,9 +6,10 @@ engine.scene.Settings.
 import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty
 
-INTEGRATOR_ITEMS = [
-    ('PATH', "Path Tracing", "Unidirectional path tracer with MIS"),
-]
+from ..engine.integrators import REGISTRY
+
+# One item per registered integrator (engine/integrators/__init__.py is the one list).
+INTEGRATOR_ITEMS = [(cls.name.upper(), cls.label, cls.description) for cls in REGISTRY.values()]
 
 
 PATTERN_ITEMS = [

@@ -13,13 +13,14 @@ import numpy as np
 
 from ..errors import EmberError
 from ..rng import PATTERNS
-from ..scene import FILTERS, INTEGRATORS, Settings
+from ..integrators import NAMES as INTEGRATORS
+from ..scene import FILTERS, Settings
 
 _DEFAULTS = Settings()
 
 # scene.ember field -> Settings field (same name); read with getattr so plain bpy works.
 _EMBER_FIELDS = ("samples", "max_depth", "seed", "time_limit", "noise_target", "batch_size")
-_INTEGRATOR_ENUM = {"PATH": "path"}
+_INTEGRATOR_ENUM = {name.upper(): name for name in INTEGRATORS}  # UI enum id -> registry name
 
 
 def render_size(render) -> tuple[int, int]:

@@ -1,0 +1,13 @@
+"""The registry: the one list of integrators. The UI enum, `render.py --integrator`, the
+exporter and validation all derive from it."""
+from __future__ import annotations
+
+from .path import PathIntegrator
+
+REGISTRY = {cls.name: cls for cls in (PathIntegrator,)}
+NAMES = tuple(REGISTRY)
+
+
+def create(scene):
+    """The integrator object named by scene.settings.integrator."""
+    return REGISTRY[scene.settings.integrator](scene)

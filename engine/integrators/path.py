@@ -26,7 +26,9 @@ from ..accel import Accel, offset_origin
 from ..bsdf.closure import make_closure, plain_lambert_albedo
 from ..errors import Cancelled
 from ..lights.light_set import LightSet
+from ..rng import Sampler
 from ..scene import Scene
+from .base import Integrator, Stage
 
 # Random-number groups (rng.Sampler): 0 the pixel filter, then per bounce _GROUPS groups:
 # light (lanes 0-1 the point on the light, 2 its choice) and BSDF (0-1 the direction, 2 the
@@ -169,3 +171,25 @@ class PathTracer:
             skip = prim[keep]
             tmax = None
         return np.ascontiguousarray(L.T)
+
+
+class PathIntegrator(Integrator):
+    """The path tracer as one film stage over all samples."""
+
+    name = "path"
+    label = "Path Tracing"
+    description = "Unidirectional path tracing with next-event estimation and MIS (unbiased)"
+
+    def stages(self, round: int):
+        return [self.pixel_stage(0, self.layout.total_paths)] if round == 0 else []
+
+    def build(self, ctx) -> None:
+        super().build(ctx)
+        self.tracer = PathTracer(ctx.scene, ctx.accel, ctx.lights)
+
+    def run(self, stage: Stage, item: int, stop=None) -> np.ndarray:
+        layout, s = self.layout, self.scene.settings
+        k = layout.paths(stage, item)
+        j = k % layout.n_pixels
+        sampler = Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
+        return self.tracer.render(sampler, layout.px[j], layout.py[j], stop)

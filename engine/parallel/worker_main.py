@@ -15,7 +15,7 @@ def main() -> None:
     package = importlib.util.module_from_spec(spec)
     sys.modules["ember_worker"] = package
     spec.loader.exec_module(package)
-    from ember_worker.engine.workers import serve
+    from ember_worker.engine.parallel.workers import serve
 
     serve(sys.stdin.buffer, sys.stdout.buffer)
 

@@ -1,18 +1,26 @@
-"""Worker processes that trace batches, so that every CPU core renders.
+"""Worker processes that run integrator work items, so that every CPU core renders.
 
 Threads do not scale here: a wavefront bounce is hundreds of mid-sized NumPy operations
 and the GIL is held between them (measured: 1.05x with two threads on two cores). Each
 worker is a separate Python process started with the parent's interpreter
-(`engine/worker_main.py`), which loads this package by file path, receives the Scene as
-plain arrays (no class references, so it works whatever name Blender imported us under),
-builds its own Embree scene and then answers batch requests over its pipes.
+(`engine/parallel/worker_main.py`), which loads this package by file path, receives the
+Scene as plain arrays (no class references, so it works whatever name Blender imported us
+under), builds its own Embree scene and integrator (engine/tracer.py) and then answers
+requests over its pipes.
 
-Messages are length-prefixed pickles. Parent -> worker: the scene once, then batch
-indices, `None` to quit. Worker -> parent: ("ready",), then ("done", batch, L, rays,
-embree_seconds) or ("error", text).
+Messages are length-prefixed pickles. Parent -> worker: the scene once, then
+("run", stage as a dict, item), ("install", version, shared-memory handle), `None` to quit.
+Worker -> parent: ("ready",), then per run ("done", result, rays, embree_seconds) or
+("error", text). Installs are not answered: the pipe is ordered, so every run sent after an
+install sees the installed arrays.
+
+Workers ignore SIGINT: a terminal's Ctrl-C reaches the whole process group, and the render
+process alone decides how to stop (it kills the workers). A worker whose parent dies sees
+its stdin close and exits.
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import pathlib
 import pickle
@@ -22,10 +30,10 @@ import sys
 import threading
 from concurrent.futures import Future
 
-from .errors import EmberError
+from ..errors import EmberError
 
 _HEADER = struct.Struct("<Q")
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
 def write_message(stream, obj) -> None:
@@ -45,23 +53,40 @@ def read_message(stream):
 
 def serve(fin, fout) -> None:
     """The worker's loop (runs in the child process)."""
-    from .scene import scene_from_plain
-    from .tracer import BatchTracer
+    import signal
 
-    tracer = BatchTracer(scene_from_plain(read_message(fin)))
+    from ..integrators.base import Stage
+    from ..scene import scene_from_plain
+    from ..tracer import Tracer
+    from .shared import Attachment
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    tracer = Tracer(scene_from_plain(read_message(fin)))
     write_message(fout, ("ready",))
-    while True:
-        batch = read_message(fin)
-        if batch is None:
-            return
-        try:
-            rays0, embree0 = tracer.accel.rays, tracer.accel.embree_seconds
-            L = tracer.trace(batch)
-            write_message(fout, ("done", batch, L, tracer.accel.rays - rays0, tracer.accel.embree_seconds - embree0))
-        except Exception:  # reported to the parent, which raises it on its side
-            import traceback
+    attached = None
+    try:
+        while True:
+            msg = read_message(fin)
+            if msg is None:
+                return
+            try:
+                if msg[0] == "install":
+                    _, version, handle = msg
+                    new = Attachment(handle)
+                    tracer.integrator.install(version, new.arrays)
+                    if attached is not None:
+                        attached.close()
+                    attached = new
+                    continue
+                _, stage, item = msg
+                write_message(fout, ("done",) + tracer.run(Stage(**stage), item))
+            except Exception:  # reported to the parent, which raises it on its side
+                import traceback
 
-            write_message(fout, ("error", traceback.format_exc()))
+                write_message(fout, ("error", traceback.format_exc()))
+    finally:
+        if attached is not None:
+            attached.close()
 
 
 def can_spawn() -> bool:
@@ -74,7 +99,8 @@ class _Worker:
     def __init__(self, plain_scene):
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join([p for p in sys.path if p])
-        self.proc = subprocess.Popen([sys.executable, "-u", str(ROOT / "engine" / "worker_main.py"), str(ROOT)],
+        self.proc = subprocess.Popen([sys.executable, "-u", str(ROOT / "engine" / "parallel" / "worker_main.py"),
+                                      str(ROOT)],
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
         self.pending: list[Future] = []
         self.lock = threading.Lock()
@@ -98,7 +124,7 @@ class _Worker:
             with self.lock:
                 fut = self.pending.pop(0)
             if msg[0] == "done":
-                fut.set_result(msg[2:])
+                fut.set_result(msg[1:])
             else:
                 fut.set_exception(RuntimeError("Ember worker failed:\n" + msg[1]))
 
@@ -111,12 +137,16 @@ class _Worker:
             if not fut.done():
                 fut.set_exception(exc)
 
-    def submit(self, batch: int) -> Future:
+    def submit(self, stage: dict, item: int) -> Future:
         fut = Future()
         with self.lock:
             self.pending.append(fut)
-        write_message(self.proc.stdin, batch)
+            write_message(self.proc.stdin, ("run", stage, item))
         return fut
+
+    def install(self, version: int, handle) -> None:
+        with self.lock:
+            write_message(self.proc.stdin, ("install", version, handle))
 
     def load(self) -> int:
         with self.lock:
@@ -135,19 +165,25 @@ class _Worker:
 
 
 class WorkerPool:
-    """n worker processes tracing batches of one scene; `submit` returns a Future of
-    (L (N,3), rays, embree_seconds). Requests go to the least-loaded worker."""
+    """n worker processes running the work items of one scene's integrator; `submit` returns
+    a Future of (result, rays, embree_seconds). Requests go to the least-loaded worker."""
 
     def __init__(self, scene, n: int):
-        from .scene import to_plain
+        from ..scene import to_plain
 
         plain = to_plain(scene)
         self.workers = [_Worker(plain) for _ in range(n)]
         for w in self.workers:
             w.ready.result()
 
-    def submit(self, batch: int) -> Future:
-        return min(self.workers, key=_Worker.load).submit(batch)
+    def submit(self, stage, item: int) -> Future:
+        plain = dataclasses.asdict(stage)  # no class references across the pipe
+        return min(self.workers, key=_Worker.load).submit(plain, item)
+
+    def install(self, version: int, handle) -> None:
+        """Every worker installs the published arrays before its next item."""
+        for w in self.workers:
+            w.install(version, handle)
 
     def close(self, kill: bool = False) -> None:
         for w in self.workers:

@@ -1,0 +1,104 @@
+"""What every integrator is: a sequence of stages of independent work items.
+
+The render session (engine/session.py) knows nothing of light transport. It asks the
+integrator for the stages of each round, runs every item of a stage in a worker process (or
+in the render process for small renders), and then either adds the items' radiance to the
+film (film stages) or hands the items' results, in item order, to `reduce`, whose arrays are
+published read-only to every worker (`install`) before the next stage starts.
+
+    path tracer   round 0: pixels (all samples)
+    photon map    round 0: photons -> publish maps; round 1: pixels
+    ppm           round r: photons -> publish; pixels (one pass) -> publish radii
+
+An integrator object lives in the render process (stages, reduce: cheap, no Embree) and, as a
+separate object, in each process that traces (`build` gives it the Embree scene and lights,
+then `run` and `install`). `run` must be a pure function of (seed, stage, item, installed
+arrays), so that an image never depends on timing, batch size or the number of workers.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar, Sequence
+
+import numpy as np
+
+from ..scene import Scene
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One kind of work. items: worker calls. film: each item returns radiance (N,3) for the
+    flat path indices [start, stop) cut into batches (BatchLayout); publish: the items'
+    results are reduced and published to every worker."""
+
+    name: str
+    items: int
+    film: bool = False
+    publish: bool = False
+    start: int = 0
+    stop: int = 0
+
+
+@dataclass
+class TraceContext:
+    """What a tracing process builds once per render (engine/tracer.py)."""
+
+    scene: Scene
+    accel: object  # engine.accel.Accel
+    lights: object  # engine.lights.light_set.LightSet
+    layout: object  # engine.tracer.BatchLayout
+
+
+class Integrator:
+    name: ClassVar[str] = ""
+    label: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+
+    def __init__(self, scene: Scene):
+        from ..tracer import BatchLayout
+
+        self.scene = scene
+        self.layout = BatchLayout(scene)
+        self.ctx: TraceContext | None = None
+
+    # --- render process -----------------------------------------------------------------
+    def stages(self, round: int) -> Sequence[Stage]:
+        """The stages of round `round` (0, 1, ...); empty when the render is complete."""
+        raise NotImplementedError
+
+    def reduce(self, stage: Stage, results: list) -> dict[str, np.ndarray]:
+        """Arrays to publish from a publish stage's item results (in item order)."""
+        raise NotImplementedError
+
+    def counters(self) -> dict:
+        """Figures for the stats line (photons stored, ...), render process."""
+        return {}
+
+    def overlay(self) -> np.ndarray | None:
+        """(H*W,3) radiance added to the film's mean (progressive photon mapping's photon
+        term), or None."""
+        return None
+
+    def work_items(self) -> int:
+        """About how many items the render has (worker processes pay off from a few)."""
+        return self.layout.n_batches
+
+    def film_paths(self) -> int:
+        """Flat path indices the film stages cover in all (for progress)."""
+        return self.layout.total_paths
+
+    # --- tracing processes ----------------------------------------------------------------
+    def build(self, ctx: TraceContext) -> None:
+        self.ctx = ctx
+
+    def run(self, stage: Stage, item: int, stop=None):
+        """Result of one item: radiance (N,3) for film stages, else arrays for `reduce`."""
+        raise NotImplementedError
+
+    def install(self, version: int, arrays: dict[str, np.ndarray]) -> None:
+        """Published arrays (read-only views), before any item of the next stage runs."""
+
+    # --- helpers --------------------------------------------------------------------------
+    def pixel_stage(self, start: int, stop: int, name: str = "pixels") -> Stage:
+        """A film stage over flat path indices [start, stop) (pass = k // pixels)."""
+        return Stage(name, -(-(stop - start) // self.layout.batch_size), film=True, start=start, stop=stop)

@@ -1,0 +1,84 @@
+"""Read-only arrays published by the render process to its worker processes.
+
+One POSIX shared-memory segment per published version holds all of its arrays, each at an
+aligned offset; a worker maps it and sees read-only views (a 10-million-photon map is
+shared, not pickled to every worker). The render process owns the segments and unlinks them
+on every exit path (`Publisher.release`, also run by the session's `finally`); workers only
+attach and close.
+
+Python 3.11's resource tracker registers every SharedMemory it sees, also in processes that
+merely attach, and would unlink the segment when such a process exits (cpython issue 82300):
+attaching processes unregister it again.
+"""
+from __future__ import annotations
+
+from multiprocessing import resource_tracker, shared_memory
+
+import numpy as np
+
+_ALIGN = 64
+
+
+def _layout(arrays: dict[str, np.ndarray]):
+    """{name: (offset, shape, dtype str)} and the total size in bytes."""
+    spec, offset = {}, 0
+    for name, a in arrays.items():
+        spec[name] = (offset, a.shape, a.dtype.str)
+        offset += -(-a.nbytes // _ALIGN) * _ALIGN
+    return spec, max(offset, 1)
+
+
+def views(buffer, spec: dict) -> dict[str, np.ndarray]:
+    """Read-only arrays over `buffer` laid out by `spec`."""
+    out = {}
+    for name, (offset, shape, dtype) in spec.items():
+        a = np.ndarray(shape, np.dtype(dtype), buffer=buffer, offset=offset)
+        a.flags.writeable = False
+        out[name] = a
+    return out
+
+
+class Publisher:
+    """Render-process side: `publish` copies arrays into a new segment and returns the handle
+    ((segment name, spec)) that workers pass to `attach`."""
+
+    def __init__(self):
+        self.segments: list[shared_memory.SharedMemory] = []
+
+    def publish(self, arrays: dict[str, np.ndarray]):
+        spec, size = _layout(arrays)
+        shm = shared_memory.SharedMemory(create=True, size=size)
+        self.segments.append(shm)
+        for name, a in arrays.items():
+            offset, shape, dtype = spec[name]
+            np.ndarray(shape, np.dtype(dtype), buffer=shm.buf, offset=offset)[...] = a
+        return shm.name, spec
+
+    def release(self) -> None:
+        while self.segments:
+            shm = self.segments.pop()
+            try:
+                shm.close()
+                shm.unlink()
+            except (FileNotFoundError, BufferError):  # pragma: no cover - already gone / views alive
+                pass
+
+
+class Attachment:
+    """Worker side: the arrays of one published version; `close` when a newer one arrives."""
+
+    def __init__(self, handle):
+        name, spec = handle
+        self.shm = shared_memory.SharedMemory(name=name)
+        try:
+            resource_tracker.unregister(self.shm._name, "shared_memory")
+        except Exception:  # pragma: no cover - tracker details differ across versions
+            pass
+        self.arrays = views(self.shm.buf, spec)
+
+    def close(self) -> None:
+        self.arrays = {}
+        try:
+            self.shm.close()
+        except BufferError:  # a view is still referenced somewhere: the OS frees it at exit
+            pass
