@@ -1,0 +1,454 @@
+"""Photon maps: compact photon storage, k-nearest search, density estimates, radiance photons.
+
+A photon is stored where it hit a surface: position x_p (world), incident direction w_p (unit,
+pointing back toward where the photon came from), flux Phi_p (W, RGB) and the surface normal n_p
+on the side it arrived from. Estimates follow Jensen (2001) as seed 001 states them:
+
+    L_r(x, wo) ~ sum_p f_r(x, wo, w_p) Phi_p W(d_p / r) / (N_e * c * pi r^2)
+
+over the photons near x (k nearest within r_max), r = the distance to the k-th photon (or r_max
+when fewer are found), N_e = photon PATHS emitted (never the stored count), W a kernel with
+int_disc W = c pi r^2. Irradiance E is the same sum with f_r = 1.
+
+The k-th photon fixes r and so lies on the boundary of the disc: Jensen's sum includes it, which
+biases a uniform density by k / (k - 1) (pi r_k^2 lambda is Gamma(k) distributed, E[1/Gamma(k)] =
+1/(k-1)). Here it is left out: given r, the other k - 1 photons are uniform in the disc, so the
+estimate is exactly unbiased on a locally uniform density for every kernel (the "(k-1)/(pi r^2)"
+form). With fewer than k photons inside r_max, all of them count and r = r_max (a Poisson count).
+
+Wrong-side photons are rejected as Mitsuba 0.6 does (src/librender/photonmap.cpp): a photon
+counts only if n_p . n > 0.1 and w_p . n > 0, so light on the back of a thin wall never leaks.
+
+Storage (`PhotonMap.pack`): float32 position (12 B), octahedral int16 w_p and n_p (4 B each,
+Cigolle et al. 2014, "A Survey of Efficient Representations for Independent Unit Vectors"),
+float32 flux (12 B): 32 B per photon. The search structure is pykdtree's (float32 points used in
+place, uint32 permutation, 11-12 B per photon with its nodes); scipy's cKDTree is the fallback
+where pykdtree is missing (it copies the points as float64: about 85 B per photon, over budget).
+bench/photon_map_study.py measures both.
+
+Radiance photons (Christensen 1999, "Faster Photon Map Global Illumination"; pbrt-v2
+integrators/photonmap.cpp): the irradiance at every j-th photon, computed once from the map, so a
+final-gather ray needs one nearest-neighbour lookup (with a normal check) instead of a k-NN
+estimate; the caller multiplies by the diffuse reflectance / pi.
+
+Every query is vectorised over N points, processed in chunks so that the N x k temporaries stay
+under ~100 MB, on ONE thread (queries run inside worker processes, one per core).
+"""
+from __future__ import annotations
+
+import ctypes
+import glob
+import os
+
+import numpy as np
+
+from ...vec import dot, take
+
+KERNELS = ("uniform", "cone", "epanechnikov")
+CONE_K = 1.1                 # Jensen's cone filter constant (k >= 1)
+COS_NORMAL_MIN = 0.1         # photon normal . query normal must exceed this (Mitsuba 0.6)
+_SNORM16 = 32767.0
+# Candidate (point, photon) pairs per chunk: ~200 B of temporaries each -> ~100 MB at most.
+_CHUNK_PAIRS = 1 << 19
+
+
+# ----------------------------------------------------------------------------------------------
+# Octahedral unit-vector encoding (Cigolle et al. 2014 section 3.1; Meyer et al. 2010)
+
+def _sign_nonzero(x):
+    return np.where(x >= 0, np.float32(1.0), np.float32(-1.0))
+
+
+def encode_octahedral(v: np.ndarray) -> np.ndarray:
+    """Unit vectors v (N,3) -> (N,2) int16 octahedral snorm codes (angular error below 1e-4 rad)."""
+    v = np.asarray(v, dtype=np.float64)
+    x, y, z = v[:, 0], v[:, 1], v[:, 2]
+    l1 = np.abs(x) + np.abs(y) + np.abs(z)
+    l1 = np.where(l1 > 0, l1, 1.0)
+    u, w = x / l1, y / l1
+    lower = z < 0  # fold the lower hemisphere over the diagonals
+    u, w = (np.where(lower, (1.0 - np.abs(w)) * _sign_nonzero(u), u),
+            np.where(lower, (1.0 - np.abs(u)) * _sign_nonzero(w), w))
+    out = np.empty((len(v), 2), np.int16)
+    out[:, 0] = np.rint(np.clip(u, -1.0, 1.0) * _SNORM16)
+    out[:, 1] = np.rint(np.clip(w, -1.0, 1.0) * _SNORM16)
+    return out
+
+
+def decode_octahedral(e: np.ndarray) -> np.ndarray:
+    """(N,2) int16 octahedral codes -> unit vectors (N,3) float32."""
+    u = e[:, 0].astype(np.float32) * np.float32(1.0 / _SNORM16)
+    w = e[:, 1].astype(np.float32) * np.float32(1.0 / _SNORM16)
+    z = np.float32(1.0) - np.abs(u) - np.abs(w)
+    lower = z < 0
+    u, w = (np.where(lower, (np.float32(1.0) - np.abs(w)) * _sign_nonzero(u), u),
+            np.where(lower, (np.float32(1.0) - np.abs(u)) * _sign_nonzero(w), w))
+    inv = np.float32(1.0) / np.sqrt(u * u + w * w + z * z)  # |(u, w, z)| >= 1/sqrt(3): never 0
+    out = np.empty((len(e), 3), np.float32)
+    out[:, 0], out[:, 1], out[:, 2] = u * inv, w * inv, z * inv
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# Kernels: weight W(t) of t = d^2 / r^2 in [0, 1) and c = int_disc W / (pi r^2)
+
+def _kernel(kernel: str):
+    """(W, c) for a kernel name. The Mitsuba/pbrt-v2 'Simpson' kernel (1 - t)^2 (a biweight) is
+    what the brief and those renderers call Epanechnikov here; c = 1/3 gives their 3/(pi r^2)."""
+    if kernel == "uniform":
+        return None, 1.0
+    if kernel == "cone":  # Jensen 2001 eq. 7.7: W = 1 - d/(k r), c = 1 - 2/(3k)
+        return (lambda t: 1.0 - np.sqrt(t) / CONE_K), 1.0 - 2.0 / (3.0 * CONE_K)
+    if kernel in ("epanechnikov", "simpson"):
+        return (lambda t: (1.0 - t) ** 2), 1.0 / 3.0
+    raise ValueError(f"unknown kernel {kernel!r}; expected one of {KERNELS}")
+
+
+# ----------------------------------------------------------------------------------------------
+# The search structure
+
+def _omp_set_num_threads():
+    """omp_set_num_threads of the OpenMP runtime pykdtree's wheel bundles, or None.
+
+    pykdtree parallelises queries with OpenMP; the workers already use every core, so each
+    query runs on one thread. The setting is per calling thread, hence applied before each query.
+    """
+    import pykdtree
+
+    root = os.path.dirname(pykdtree.__file__)
+    for pattern in (root + ".libs/*omp*", os.path.join(root, ".dylibs", "*omp*")):
+        for path in sorted(glob.glob(pattern)):
+            try:
+                return ctypes.CDLL(path).omp_set_num_threads
+            except (OSError, AttributeError):
+                continue
+    return None
+
+
+class _Index:
+    """k-nearest search over float32 points (M,3), used in place (never written to).
+
+    query(q (n,3), k, bound) -> (d2 (n,k) squared distances, idx (n,k) int), sorted by
+    distance; neighbours beyond `bound` (or missing) have d2 = inf and idx = M.
+    """
+
+    def __init__(self, points: np.ndarray, leafsize: int = 16):
+        self.m = len(points)
+        self.leafsize = leafsize
+        try:
+            from pykdtree.kdtree import KDTree
+        except ImportError:  # pragma: no cover - the fallback where the wheel is missing
+            from scipy.spatial import cKDTree
+
+            self.kind = "cKDTree"
+            self._tree = cKDTree(points, leafsize=leafsize, balanced_tree=False, compact_nodes=False)
+            self._threads = None
+        else:
+            self.kind = "pykdtree"
+            self._tree = KDTree(points, leafsize=leafsize) if self.m else None
+            self._threads = _omp_set_num_threads()
+
+    @property
+    def nbytes(self) -> int:
+        """Memory of the structure beyond the points: the permutation plus the nodes, estimated
+        with half-full leaves and 48 B per malloc'ed node (pykdtree, leafsize 16: 16 B per point
+        estimated, 11-12 B measured by malloc statistics on uniform, planar and clustered sets,
+        bench/photon_map_study.py)."""
+        nodes = 2 * (2 * self.m // self.leafsize + 1)
+        if self.kind == "pykdtree":
+            return 4 * self.m + 48 * nodes
+        return 32 * self.m + 72 * nodes  # cKDTree: float64 copy + intp indices + nodes
+
+    def query(self, q: np.ndarray, k: int, bound: float):
+        n = len(q)
+        if self.m == 0 or k == 0:
+            return np.full((n, k), np.inf, np.float32), np.full((n, k), self.m, np.int64)
+        if self.kind == "pykdtree":
+            if self._threads is not None:
+                self._threads(1)
+            d2, idx = self._tree.query(np.ascontiguousarray(q, dtype=np.float32), k=k,
+                                       distance_upper_bound=float(bound), sqr_dists=True)
+        else:
+            d, idx = self._tree.query(q, k=k, distance_upper_bound=float(bound), workers=1)
+            d2 = d * d
+        return d2.reshape(n, k), idx.reshape(n, k)
+
+
+def _per_point(r, n: int) -> np.ndarray:
+    """r (scalar or (n,)) as an (n,) float64 array."""
+    r = np.asarray(r, dtype=np.float64)
+    return np.broadcast_to(r, (n,)) if r.ndim == 0 else r.reshape(n)
+
+
+def _chunks(n: int, k: int):
+    step = max(1, _CHUNK_PAIRS // max(k, 1))
+    for s in range(0, n, step):
+        yield s, min(n, s + step)
+
+
+# ----------------------------------------------------------------------------------------------
+# Photon map
+
+class PhotonMap:
+    """Photons stored at surface hits, with a k-nearest index over their positions.
+
+    position (M,3) world; wi (M,3) unit, toward where the photon came from; flux (M,3) W per
+    photon (estimates divide by n_emitted); normal (M,3) unit surface normal on the side the
+    photon arrived from; n_emitted: number of photon PATHS emitted. The inputs are only read.
+    `arrays` holds the packed arrays (see `pack`) to publish to other processes.
+    """
+
+    def __init__(self, position, wi, flux, normal, n_emitted: int):
+        self._install(self.pack(position, wi, flux, normal), n_emitted)
+
+    @staticmethod
+    def pack(position, wi, flux, normal) -> dict[str, np.ndarray]:
+        """Compact arrays, 32 B per photon: position (M,3) float32, wi and normal (M,2) int16
+        octahedral, flux (M,3) float32. Float32 C-contiguous inputs are used without a copy."""
+        return {
+            "position": np.ascontiguousarray(position, dtype=np.float32).reshape(-1, 3),
+            "wi": encode_octahedral(np.asarray(wi).reshape(-1, 3)),
+            "normal": encode_octahedral(np.asarray(normal).reshape(-1, 3)),
+            "flux": np.ascontiguousarray(flux, dtype=np.float32).reshape(-1, 3),
+        }
+
+    @classmethod
+    def from_packed(cls, arrays: dict, n_emitted: int) -> "PhotonMap":
+        """A map over arrays made by `pack` (e.g. read-only views of shared memory); builds the
+        index in this process and copies nothing."""
+        self = cls.__new__(cls)
+        self._install(arrays, n_emitted)
+        return self
+
+    def _install(self, arrays: dict, n_emitted: int) -> None:
+        p, wi, nrm, flux = arrays["position"], arrays["wi"], arrays["normal"], arrays["flux"]
+        m = len(p)
+        if not (p.dtype == np.float32 and p.shape == (m, 3) and flux.dtype == np.float32
+                and flux.shape == (m, 3) and wi.dtype == nrm.dtype == np.int16
+                and wi.shape == nrm.shape == (m, 2)):
+            raise ValueError("photon arrays must be packed by PhotonMap.pack")
+        if n_emitted <= 0 and m > 0:
+            raise ValueError("n_emitted must be positive")
+        self.arrays = {"position": p, "wi": wi, "normal": nrm, "flux": flux}
+        self.position, self._wi, self._normal, self.flux = p, wi, nrm, flux
+        self.n_emitted = int(n_emitted)
+        self._index = _Index(p)
+
+    def __len__(self) -> int:
+        return len(self.position)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held: the packed photon arrays plus the search structure."""
+        return sum(a.nbytes for a in self.arrays.values()) + self._index.nbytes
+
+    def wi(self, rows) -> np.ndarray:
+        """Unit incident directions (K,3) float32 of photons `rows`."""
+        return decode_octahedral(take(self._wi, rows))
+
+    def normal(self, rows) -> np.ndarray:
+        """Unit normals (K,3) float32 of photons `rows`."""
+        return decode_octahedral(take(self._normal, rows))
+
+    # -- queries -------------------------------------------------------------------------------
+
+    def _accept(self, j, nq):
+        """Mask (K,) of photons j seen from query normals nq (K,3), and their wi (K,3)."""
+        wi = self.wi(j)
+        ok = (dot(self.normal(j), nq) > COS_NORMAL_MIN) & (dot(wi, nq) > 0.0)
+        return ok, wi
+
+    def radiance(self, p, n, f, k: int, r_max, kernel: str = "uniform", min_count: int = 8):
+        """Reflected radiance L (N,3) [W m^-2 sr^-1] at points p (N,3) with unit normals n (N,3).
+
+        f(rows (K,), wi (K,3)) -> (K,3): the BSDF value f_r(wo, wi) [1/sr] at query points
+        `rows` (indices into p) for photon directions wi (the caller binds wo); f=None gives the
+        irradiance E [W m^-2]. k >= 2 nearest photons within r_max (scalar or (N,) [m]);
+        kernel in KERNELS; L = 0 where fewer than min_count photons are accepted.
+        Returns (L (N,3) float64, r (N,) float64 radius used [m]).
+        """
+        if k < 2:
+            raise ValueError("k must be at least 2 (the k-th photon only sets the radius)")
+        weight, c = _kernel(kernel)
+        p = np.asarray(p).reshape(-1, 3)
+        n = np.asarray(n).reshape(-1, 3)
+        N = len(p)
+        r_max = _per_point(r_max, N)
+        L = np.zeros((N, 3))
+        r_out = r_max.copy()
+        if len(self) == 0:
+            return L, r_out
+        k_query = min(k, len(self))
+        for s, e in _chunks(N, k_query):
+            r2_max = r_max[s:e] ** 2
+            d2, idx = self._index.query(p[s:e], k_query, np.sqrt(r2_max.max()) * (1 + 1e-6))
+            inside = d2 < r2_max[:, None]
+            # k found inside r_max: the k-th sets r and sits on the boundary (module docstring)
+            full = inside[:, -1] if k_query == k else np.zeros(e - s, bool)
+            r2 = np.where(full, d2[:, -1], r2_max)
+            inside[:, -1] &= ~full
+            rows, cols = np.nonzero(inside)
+            j = idx[rows, cols]
+            ok, wi = self._accept(j, take(n, rows + s))
+            rows, cols, j, wi = rows[ok], cols[ok], j[ok], wi[ok]
+            count = np.bincount(rows, minlength=e - s)
+            r2_row = r2[rows]
+            # W / (c pi r^2); r2 = 0 only if k photons coincide with x: no estimate there
+            norm = np.divide(1.0, c * np.pi * r2_row, out=np.zeros(len(rows)), where=r2_row > 0)
+            if weight is not None:
+                norm *= weight(d2[rows, cols] / np.where(r2_row > 0, r2_row, 1.0))
+            contrib = take(self.flux, j).astype(np.float64)
+            if f is not None:
+                contrib *= f(rows + s, wi)
+            for ch in range(3):
+                L[s:e, ch] = np.bincount(rows, weights=contrib[:, ch] * norm, minlength=e - s)
+            L[s:e][count < min_count] = 0.0
+            r_out[s:e] = np.sqrt(r2)
+        if self.n_emitted > 0:
+            L /= self.n_emitted
+        return L, r_out
+
+    def irradiance(self, p, n, k: int, r_max, kernel: str = "uniform", min_count: int = 8):
+        """Irradiance E (N,3) [W m^-2] from photons arriving on the side of n; see `radiance`.
+        Returns (E (N,3), r (N,))."""
+        return self.radiance(p, n, None, k, r_max, kernel, min_count)
+
+    def gather_radius(self, p, n, r, f=None):
+        """All accepted photons within a fixed radius r (N,) [m] of each point (progressive
+        photon mapping). f as in `radiance`, f=None for flux alone.
+
+        Returns (sum_f_flux (N,3) = sum f Phi_p [W/sr or W], NOT divided by n_emitted or pi r^2;
+        count (N,) int64 of accepted photons). Wrong-side photons and photons with f = 0 are not
+        counted, so they do not shrink a PPM radius (Mitsuba issue #145).
+        """
+        p = np.asarray(p).reshape(-1, 3)
+        n = np.asarray(n).reshape(-1, 3)
+        N = len(p)
+        r2 = _per_point(r, N) ** 2
+        total = np.zeros((N, 3))
+        count = np.zeros(N, np.int64)
+        pending = np.arange(N)
+        k = 32
+        # k-nearest with k growing x4 until no point has all k inside its radius
+        while len(pending) and len(self):
+            k = min(k, len(self))
+            unsaturated = []
+            for s, e in _chunks(len(pending), k):
+                q = pending[s:e]
+                r2_q = r2[q]
+                d2, idx = self._index.query(take(p, q), k, np.sqrt(r2_q.max()) * (1 + 1e-6))
+                inside = d2 < r2_q[:, None]
+                done = ~inside[:, -1] | (k == len(self))
+                inside &= done[:, None]
+                rows, cols = np.nonzero(inside)
+                j = idx[rows, cols]
+                g = q[rows]
+                ok, wi = self._accept(j, take(n, g))
+                g, j, wi = g[ok], j[ok], wi[ok]
+                contrib = take(self.flux, j).astype(np.float64)
+                if f is not None:
+                    contrib *= f(g, wi)
+                    nonzero = np.any(contrib != 0.0, axis=1)
+                    g, contrib = g[nonzero], contrib[nonzero]
+                for ch in range(3):
+                    total[:, ch] += np.bincount(g, weights=contrib[:, ch], minlength=N)
+                count += np.bincount(g, minlength=N)
+                unsaturated.append(q[~done])
+            pending = np.concatenate(unsaturated) if unsaturated else pending[:0]
+            k *= 4
+        return total, count
+
+
+# ----------------------------------------------------------------------------------------------
+# Radiance photons
+
+class RadiancePhotons:
+    """Irradiance precomputed at a subset of photons (Christensen 1999).
+
+    position (R,3) world, normal (R,3) unit, E (R,3) [W m^-2]: the irradiance estimate from the
+    photon map at each radiance photon. `lookup` answers with the E of the nearest radiance
+    photon whose normal agrees with the query normal: one nearest-neighbour query per point.
+    """
+
+    LOOKUP_K = 8            # candidates examined for an agreeing normal
+    COS_NORMAL_MIN = 0.5    # radiance photon normal . query normal must exceed this
+
+    def __init__(self, position, normal, E):
+        self._install(self.pack(position, normal, E))
+
+    @staticmethod
+    def rows(n_photons: int, stride: int = 4, offset: int = 0) -> np.ndarray:
+        """Photon indices that become radiance photons: every stride-th (pbrt-v2 uses 1/8)."""
+        return np.arange(offset % max(stride, 1), n_photons, max(stride, 1))
+
+    @classmethod
+    def build(cls, photon_map: PhotonMap, k: int, r_max, stride: int = 4, kernel: str = "uniform",
+              min_count: int = 8, rows=None) -> "RadiancePhotons":
+        """Radiance photons at photon_map's photons `rows` (default every stride-th), each with
+        the irradiance estimate of the map at its position and normal (one k-NN estimate each;
+        to spread the work over processes, estimate slices of rows and use the constructor)."""
+        if rows is None:
+            rows = cls.rows(len(photon_map), stride)
+        position = take(photon_map.position, rows)
+        normal = photon_map.normal(rows)
+        E, _ = photon_map.irradiance(position, normal, k, r_max, kernel, min_count)
+        return cls(position, normal, E)
+
+    @staticmethod
+    def pack(position, normal, E) -> dict[str, np.ndarray]:
+        """position (R,3) float32, normal (R,2) int16 octahedral, E (R,3) float32: 28 B each."""
+        return {
+            "position": np.ascontiguousarray(position, dtype=np.float32).reshape(-1, 3),
+            "normal": encode_octahedral(np.asarray(normal).reshape(-1, 3)),
+            "E": np.ascontiguousarray(E, dtype=np.float32).reshape(-1, 3),
+        }
+
+    @classmethod
+    def from_packed(cls, arrays: dict) -> "RadiancePhotons":
+        self = cls.__new__(cls)
+        self._install(arrays)
+        return self
+
+    def _install(self, arrays: dict) -> None:
+        p, nrm, E = arrays["position"], arrays["normal"], arrays["E"]
+        m = len(p)
+        if not (p.dtype == E.dtype == np.float32 and p.shape == E.shape == (m, 3)
+                and nrm.dtype == np.int16 and nrm.shape == (m, 2)):
+            raise ValueError("radiance photon arrays must be packed by RadiancePhotons.pack")
+        self.arrays = {"position": p, "normal": nrm, "E": E}
+        self.position, self._normal, self.E = p, nrm, E
+        self._index = _Index(p)
+
+    def __len__(self) -> int:
+        return len(self.position)
+
+    @property
+    def nbytes(self) -> int:
+        return sum(a.nbytes for a in self.arrays.values()) + self._index.nbytes
+
+    def lookup(self, p, n, r_max=np.inf, return_found: bool = False):
+        """Irradiance E (N,3) [W m^-2] at points p (N,3) with unit normals n (N,3): the E of the
+        nearest radiance photon within r_max [m] whose normal agrees with n (among the
+        LOOKUP_K nearest); 0 where none does. With return_found, also the (N,) bool mask."""
+        p = np.asarray(p).reshape(-1, 3)
+        n = np.asarray(n).reshape(-1, 3)
+        N = len(p)
+        out = np.zeros((N, 3))
+        found = np.zeros(N, bool)
+        k = min(self.LOOKUP_K, len(self))
+        bound = float(np.max(r_max)) if np.ndim(r_max) else float(r_max)
+        r2_max = _per_point(r_max, N) ** 2
+        for s, e in _chunks(N, max(k, 1)):
+            d2, idx = self._index.query(p[s:e], k, bound)
+            inside = d2 < r2_max[s:e, None]
+            rows, cols = np.nonzero(inside)
+            j = idx[rows, cols]
+            agree = dot(decode_octahedral(take(self._normal, j)), take(n, rows + s)) > self.COS_NORMAL_MIN
+            valid = np.zeros(inside.shape, bool)
+            valid[rows[agree], cols[agree]] = True
+            first = np.argmax(valid, axis=1)  # the nearest agreeing candidate
+            hit = valid[np.arange(e - s), first]
+            best = idx[np.arange(e - s), first][hit]
+            out[s:e][hit] = take(self.E, best)
+            found[s:e] = hit
+        return (out, found) if return_found else out
