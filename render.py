@@ -59,8 +59,11 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-def _int_at_least(minimum):
-    """argparse type: a whole number >= minimum."""
+INT_MAX = 2 ** 31 - 1  # Blender's integer properties are 32-bit
+
+
+def _int_at_least(minimum, maximum=INT_MAX):
+    """argparse type: a whole number in minimum..maximum."""
     def parse(text):
         try:
             value = int(text)
@@ -68,6 +71,8 @@ def _int_at_least(minimum):
             raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}")
         if value < minimum:
             raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
+        if value > maximum:
+            raise argparse.ArgumentTypeError(f"must be at most {maximum}, got {value}")
         return value
     return parse
 
@@ -85,6 +90,8 @@ def _finite_at_least_zero(example):
             raise argparse.ArgumentTypeError(f"expected {example}, got {text!r}")
         if not value >= 0 or value == float("inf"):
             raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
+        if value > 3.4e38:  # Blender stores it as a 32-bit float
+            raise argparse.ArgumentTypeError(f"must be at most 3.4e38, got {text!r}")
         return value
     return parse
 
@@ -282,8 +289,6 @@ def _apply_settings(scene, args) -> None:
     if args.noise_target is not None:
         ember.noise_target = args.noise_target
     if args.seed is not None:
-        if args.seed > 2 ** 31 - 1:
-            raise UsageError(f"--seed must be at most {2 ** 31 - 1}")
         ember.seed = args.seed
     if args.max_depth is not None:
         ember.max_depth = args.max_depth
@@ -297,8 +302,20 @@ def _apply_settings(scene, args) -> None:
             raise UsageError(f"unknown integrator {args.integrator!r} (choose one of: {names})")
         ember.integrator = wanted
     if args.resolution is not None:
-        scene.render.resolution_x, scene.render.resolution_y = args.resolution
-        scene.render.resolution_percentage = 100
+        (scene.render.resolution_x, scene.render.resolution_y,
+         scene.render.resolution_percentage) = blender_resolution(*args.resolution)
+
+
+def blender_resolution(width: int, height: int) -> tuple[int, int, int]:
+    """(resolution_x, resolution_y, resolution_percentage) giving a width x height frame.
+    Blender clamps resolution_x/y to 4..65536 (a 1x1 request became 4x4) but applies the
+    percentage after: size = resolution * percentage // 100, so small sizes take a small
+    percentage, e.g. 1x1 = 100x100 at 1 %."""
+    for pct in range(100, 0, -1):
+        rx, ry = -(-100 * width // pct), -(-100 * height // pct)  # smallest with rx * pct // 100 == w
+        if 4 <= rx <= 65536 and 4 <= ry <= 65536 and rx * pct // 100 == width and ry * pct // 100 == height:
+            return rx, ry, pct
+    raise UsageError(f"--resolution {width}x{height} cannot be expressed in Blender's render settings")
 
 
 def _set_png_format(scene) -> None:
@@ -448,9 +465,10 @@ def run(argv: list[str]) -> int:
     if reference is not None:
         full = follower.layers[layer][1]  # the full-frame image, before any crop
         extra += f", relMSE {reference.error(full):.4e} (eps {reference.metrics.EPS:g})"
+    nonfinite = sum(int(getattr(s, "nonfinite", 0)) for s, _, _ in follower.layers.values())
     print(f"Ember: {blend.name} -> {output}: {w}x{h}, {samples} samples, "
           f"render {render_s:.2f} s, total {time.perf_counter() - t_start:.2f} s, "
-          f"{_fmt_rate(rays / max(render_s, 1e-9))}{extra}", flush=True)
+          f"{_fmt_rate(rays / max(render_s, 1e-9))}{extra}, {nonfinite} non-finite samples", flush=True)
     return EXIT_OK
 
 

@@ -1,8 +1,11 @@
-"""Checks of a Scene before rendering: settings in range, something that emits light.
+"""Checks of a Scene before rendering: settings in range, light values Ember can render,
+memory enough for the film, the batches and the scene; something that emits light.
 
 One place for them, so the CLI, F12 and tests give the same message for the same problem.
 """
 from __future__ import annotations
+
+import os
 
 import numpy as np
 
@@ -42,9 +45,145 @@ def validate(scene: Scene) -> None:
         problems.append(f"unknown integrator {s.integrator!r} (use one of {', '.join(INTEGRATORS)})")
     if problems:
         raise EmberError("Invalid render settings: " + "; ".join(problems))
+    check_light_values(scene)
+    check_memory(scene)
+
+
+# Negative lights (Cycles renders them as negative radiance) need the integrator to keep
+# negative contributions; until it does they are refused rather than silently dropped.
+NEGATIVE_LIGHTS = False
+
+
+def _names(names, limit=5) -> str:
+    unique = list(dict.fromkeys(names))
+    text = ", ".join(f"'{n}'" for n in unique[:limit])
+    return text + (f" and {len(unique) - limit} more" if len(unique) > limit else "")
+
+
+def _light_names(scene: Scene, rows) -> list:
+    names = scene.lights.names
+    return [names[i] if i < len(names) else f"light {i}" for i in rows]
+
+
+def _used_material_names(scene: Scene, bad: np.ndarray) -> list:
+    """Names of materials flagged in bad (M,) that some triangle uses."""
+    used = np.zeros(len(bad), bool)
+    used[np.unique(scene.mesh.material)] = True
+    names = scene.materials.names
+    return [names[i] if i < len(names) else f"material {i}" for i in np.flatnonzero(bad & used)]
+
+
+def check_light_values(scene: Scene) -> None:
+    """Refuse NaN/Inf light strengths and emission (they would make every pixel NaN) and,
+    while NEGATIVE_LIGHTS is off, negative ones."""
+    Le, emission, world = scene.lights.Le, scene.materials.emission, scene.world
+    problems = []
+    bad = ~np.all(np.isfinite(Le), axis=-1)
+    if bad.any():
+        problems.append(f"light(s) {_names(_light_names(scene, np.flatnonzero(bad)))} have a NaN or infinite strength")
+    bad_m = _used_material_names(scene, ~np.all(np.isfinite(emission), axis=-1))
+    if bad_m:
+        problems.append(f"material(s) {_names(bad_m)} have a NaN or infinite emission")
+    if not np.all(np.isfinite(world.color)):
+        problems.append("the world colour or strength is NaN or infinite")
+    if problems:
+        raise EmberError("Cannot render: " + "; ".join(problems) + ".")
+    if NEGATIVE_LIGHTS:
+        return
+    neg = _light_names(scene, np.flatnonzero(np.any(Le < 0, axis=-1)))
+    neg_m = _used_material_names(scene, np.any(emission < 0, axis=-1))
+    what = []
+    if neg:
+        what.append(f"light(s) {_names(neg)}")
+    if neg_m:
+        what.append(f"emissive material(s) {_names(neg_m)}")
+    if np.any(world.color < 0) or (world.image is not None and np.min(world.image) < 0):
+        what.append("the world")
+    if what:
+        raise EmberError("Negative light is not supported yet: " + " and ".join(what)
+                         + " emit negative power; use a positive strength and colour.")
+
+
+# ---- memory -------------------------------------------------------------------------------
+# Bytes per film pixel: running sums and squares (2 x 24), count (8), the noise snapshot (12),
+# plus the transient (H, W, 4) images and float64 means made when the film is shown or
+# saved, and Blender's render result (measured peak over a 2048x2048 render: ~0.2 KB/pixel).
+FILM_BYTES_PER_PIXEL = 220
+# Per path of a batch in a tracing process: ray, hit, throughput and shading state arrays
+# (float64 (N,3) each) and NumPy temporaries of one bounce.
+BATCH_BYTES_PER_PATH = 2000
+# Per triangle in a tracing process: the Mesh arrays, the Accel's float64 copies, Embree's BVH.
+SCENE_BYTES_PER_TRIANGLE = 400
+PROCESS_BYTES = 150 << 20  # an interpreter with NumPy and Embree loaded
+GIB = float(1 << 30)
+
+
+def available_memory() -> int | None:
+    """MemAvailable of /proc/meminfo in bytes (None where there is no such file)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def memory_estimate(scene: Scene, processes: int | None = None) -> dict:
+    """Peak memory (bytes) a render of `scene` needs, by part: film (render process),
+    batches, scene (each per tracing process) and the total. processes: tracing processes
+    (default: one per core, the most the session starts)."""
+    s = scene.settings
+    if processes is None:
+        processes = s.threads if getattr(s, "threads", 0) else (os.cpu_count() or 1)
+    processes = max(int(processes), 1)
+    film = FILM_BYTES_PER_PIXEL * int(s.width) * int(s.height)
+    x0, y0, x1, y1 = s.border
+    paths = min(int(s.batch_size), max(int(s.samples), 1) * max((x1 - x0) * (y1 - y0), 1))
+    batches = BATCH_BYTES_PER_PATH * paths
+    image = scene.world.image
+    texels = scene.materials.image_texels
+    scene_bytes = (SCENE_BYTES_PER_TRIANGLE * scene.mesh.n_triangles
+                   + (4 * image.nbytes if image is not None else 0)  # the image and its tables
+                   + (texels.nbytes if texels is not None else 0))
+    per_process = batches + scene_bytes + PROCESS_BYTES
+    total = film + processes * per_process
+    return dict(film=film, batches=batches, scene=scene_bytes, processes=processes, total=total)
+
+
+def check_memory(scene: Scene, available: int | None = None) -> None:
+    """Refuse a render whose memory estimate exceeds the memory available (before anything
+    large is allocated), naming the estimate and what to change."""
+    if available is None:
+        available = available_memory()
+    if available is None:
+        return
+    est = memory_estimate(scene)
+    if est["total"] <= available:
+        return
+    s = scene.settings
+    raise EmberError(
+        f"Not enough memory: a {s.width}x{s.height} render needs about {est['total'] / GIB:.1f} GiB "
+        f"(film {est['film'] / GIB:.1f} GiB, {est['processes']} process(es) x "
+        f"{(est['batches'] + est['scene'] + PROCESS_BYTES) / GIB:.2f} GiB for batches and scene) "
+        f"but {available / GIB:.1f} GiB are available; lower the resolution or the batch size.")
+
+
+def check_frame_memory(width: int, height: int, available: int | None = None) -> None:
+    """The film part of check_memory, for callers that know only the frame size: F12 calls it
+    before Blender allocates its render result, so a frame that cannot fit is refused before
+    anything of its size exists."""
+    if available is None:
+        available = available_memory()
+    need = FILM_BYTES_PER_PIXEL * int(width) * int(height) + PROCESS_BYTES
+    if available is not None and need > available:
+        raise EmberError(f"Not enough memory: a {width}x{height} render needs at least {need / GIB:.1f} GiB "
+                         f"for its image but {available / GIB:.1f} GiB are available; lower the resolution.")
 
 
 def has_light(scene: Scene) -> bool:
     world = scene.world
-    return (len(scene.lights) > 0 or bool(np.any(scene.materials.emission > 0))
-            or bool(np.max(world.color) > 0 and (getattr(world, "image", None) is None or np.max(world.image) > 0)))
+    return (len(scene.lights) > 0 or bool(np.any(scene.materials.emission != 0))
+            or bool(np.max(np.abs(world.color)) > 0
+                    and (getattr(world, "image", None) is None or np.max(np.abs(world.image)) > 0)))

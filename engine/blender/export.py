@@ -9,6 +9,8 @@ Raises EmberError for scenes Ember cannot render and Cancelled when test_break()
 """
 from __future__ import annotations
 
+import numpy as np
+
 from ..errors import Cancelled, EmberError
 from ..scene import Lights, Scene
 from .export_camera import export_camera
@@ -100,10 +102,12 @@ def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
     mesh = meshes.build(check, report)
     check()
     lights = Lights.make(light_rows)
-    if mesh.n_triangles == 0 and len(lights) == 0:
-        raise EmberError("Nothing to render: the scene has no visible geometry and no lights.")
     report("Export: world")
     world = export_world(depsgraph, scene, warn)
+    # A camera looking at a lit world renders the world (as Cycles); only a scene with
+    # nothing at all to show is refused.
+    if mesh.n_triangles == 0 and len(lights) == 0 and not (world.visible and np.any(world.color != 0)):
+        raise EmberError("Nothing to render: the scene has no visible geometry, no lights and a black world.")
     report(f"Export: done ({mesh.n_triangles} triangles, {len(lights)} lights, "
            f"{len(materials)} materials)")
     return Scene(mesh=mesh, materials=materials.materials(), lights=lights, world=world,

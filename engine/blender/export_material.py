@@ -503,6 +503,15 @@ class _Converter:
         self.add(w, kind=LOBE_DIFFUSE, color=tuple(base), color_tex=btex, layer=top, **opacity)
 
 
+def _group(warn, what: str, name: str) -> None:
+    """One warning line per unsupported feature listing the datablocks (export.Warnings)."""
+    group = getattr(warn, "group", None)
+    if group is not None:
+        group(what, name)
+    else:
+        warn(f"{what}: '{name}'.")
+
+
 def material_row(mat, textures: _Textures, warn, phong: bool = False) -> dict:
     """One Materials row for a bpy Material (evaluated or original). Warns at most once."""
     name = mat.name
@@ -521,8 +530,16 @@ def material_row(mat, textures: _Textures, warn, phong: bool = False) -> dict:
     if out is None:
         warn(f"Material '{name}': it has no Material Output node; rendered as grey diffuse.")
         return dict(kind=MAT_DIFFUSE, base_color=GREY, emission=(0, 0, 0), name=name)
+    surface = follow_link(out.inputs["Surface"])
+    volume_socket = out.inputs.get("Volume")
+    if volume_socket is not None and follow_link(volume_socket) is not None:
+        _group(warn, "Volume shaders are not supported and are ignored (a material with only a "
+                     "volume renders as a transparent surface)", name)
+        if surface is None:  # Cycles: a volume-only material has a transparent boundary
+            return dict(kind=MAT_NODES, base_color=(0.0, 0.0, 0.0), emission=(0, 0, 0), name=name,
+                        lobes=[dict(kind=LOBE_TRANSPARENT, weight=(1.0, 1.0, 1.0), color=(1.0, 1.0, 1.0))])
     conv = _Converter(mat, textures, phong)
-    conv.shader(follow_link(out.inputs["Surface"]), np.ones(3))
+    conv.shader(surface, np.ones(3))
     if follow_link(out.inputs["Displacement"]) is not None:
         conv.note("displacement (ignored)")
     if conv.notes:

@@ -8,7 +8,9 @@ Instances are grouped per (mesh, material slots) and transformed with NumPy in c
 positions by the 4x4, corner normals by the inverse transpose (renormalised). A
 negative-determinant transform reverses the triangle winding (and the corner order) so
 the winding normal keeps agreeing with the shading normals, as Cycles does for
-negatively scaled objects. Zero-area triangles are dropped (counted, one warning).
+negatively scaled objects. Zero-area triangles are dropped (counted, one warning);
+triangles with NaN or infinite vertex coordinates and instances with a non-finite or
+singular transform are dropped too, and reported as such, naming the objects.
 """
 from __future__ import annotations
 
@@ -24,15 +26,17 @@ CHUNK_ELEMENTS = 1 << 21
 
 
 class _Proto:
-    __slots__ = ("positions", "triangles", "normals", "uvs", "slot", "n_dropped")
+    __slots__ = ("positions", "triangles", "normals", "uvs", "slot", "n_dropped", "n_nonfinite", "name")
 
-    def __init__(self, positions, triangles, normals, uvs, slot, n_dropped):
+    def __init__(self, positions, triangles, normals, uvs, slot, n_dropped, n_nonfinite=0, name=""):
         self.positions = positions  # (V,3) float32 local
         self.triangles = triangles  # (T,3) int32, degenerate ones removed
         self.normals = normals  # (T,3,3) float32 local corner normals
         self.uvs = uvs  # (T,3,2) float32 corner UVs
         self.slot = slot  # (T,) int32 material slot index
-        self.n_dropped = n_dropped
+        self.n_dropped = n_dropped  # zero-area triangles removed
+        self.n_nonfinite = n_nonfinite  # triangles with a NaN/Inf vertex removed
+        self.name = name  # the object it was first extracted from (for messages)
 
 
 def _ints(collection, prop, n) -> np.ndarray:
@@ -127,7 +131,9 @@ def extract_mesh(ob) -> _Proto | None:
         ob.to_mesh_clear()
     tris = corner_vert[loops]
     normals = corner.reshape(-1, 3)[loops]
-    return _finish_proto(pos.reshape(-1, 3), tris, normals, corner_uv[loops], slot)
+    proto = _finish_proto(pos.reshape(-1, 3), tris, normals, corner_uv[loops], slot)
+    proto.name = ob.name
+    return proto
 
 
 def _corner_uvs(me, n_loop) -> np.ndarray:
@@ -151,6 +157,11 @@ def _sin2(e1, e2):
 def _finish_proto(pos, tris, normals, uvs, slot) -> _Proto:
     """Drop degenerate triangles and repair bad corner normals. pos (V,3) float32."""
     n_tri = len(tris)
+    finite_vertex = np.isfinite(pos).all(axis=1)
+    finite_tri = finite_vertex[tris].all(axis=1)
+    n_nonfinite = int(n_tri - np.count_nonzero(finite_tri))
+    if n_nonfinite:  # their triangles are dropped; zero the coordinates so no NaN reaches
+        pos = np.where(finite_vertex[:, None], pos, np.float32(0.0))  # the bounds or Embree
     a, b, c = pos[tris[:, 0]], pos[tris[:, 1]], pos[tris[:, 2]]
     # Fast float32 pass; float32 rounding of the cross product is a few 1e-8 |e1||e2|,
     # so only triangles with sin(angle) below 1e-6 need the exact float64 test.
@@ -162,7 +173,8 @@ def _finish_proto(pos, tris, normals, uvs, slot) -> _Proto:
         i0, i1, i2 = (pos[tris[unsure, k]].astype(np.float64) for k in range(3))
         c2u, l2u = _sin2(i1 - i0, i2 - i0)
         valid[unsure] = (c2u > (EPS_SIN * EPS_SIN) * l2u) & np.isfinite(c2u) & np.isfinite(l2u)
-    n_dropped = int(n_tri - np.count_nonzero(valid))
+    valid &= finite_tri
+    n_dropped = int(n_tri - np.count_nonzero(valid)) - n_nonfinite
     if n_dropped:
         tris, normals, uvs, slot = tris[valid], normals[valid], uvs[valid], slot[valid]
         a, b, c = a[valid], b[valid], c[valid]
@@ -174,7 +186,8 @@ def _finish_proto(pos, tris, normals, uvs, slot) -> _Proto:
         face = np.cross((b[ti] - a[ti]).astype(np.float64), (c[ti] - a[ti]).astype(np.float64))
         normals[ti, ci] = face / np.linalg.norm(face, axis=1)[:, None]
     return _Proto(pos, np.ascontiguousarray(tris, np.int32), np.ascontiguousarray(normals, np.float32),
-                  np.ascontiguousarray(uvs, np.float32), np.ascontiguousarray(slot, np.int32), n_dropped)
+                  np.ascontiguousarray(uvs, np.float32), np.ascontiguousarray(slot, np.int32), n_dropped,
+                  n_nonfinite)
 
 
 def _normalize_rows(v: np.ndarray) -> np.ndarray:
@@ -229,14 +242,20 @@ class MeshCollector:
         plan = []  # (proto, material lookup, matrices (k,4,4), det (k,))
         n_vert = n_tri = 0
         dropped = 0
+        nonfinite, bad_transform = [], []  # object names
         for (data_key, mats), matrices in self._groups.items():
             proto = self._protos[data_key]
             M = np.array(matrices, np.float64).reshape(-1, 4, 4)
             det = np.linalg.det(M[:, :3, :3])
             ok = np.isfinite(det) & (det != 0.0) & np.all(np.isfinite(M.reshape(len(M), -1)), axis=1)
             dropped += proto.n_dropped * len(M)
+            if proto.n_nonfinite:
+                nonfinite.append(proto.name)
             if not ok.all():
-                dropped += len(proto.triangles) * int(np.count_nonzero(~ok))
+                finite = np.all(np.isfinite(M.reshape(len(M), -1)), axis=1)
+                if not finite.all():
+                    bad_transform.append(proto.name)
+                dropped += len(proto.triangles) * int(np.count_nonzero(~ok & finite))  # scaled to 0
                 M, det = M[ok], det[ok]
             if len(M) == 0 or len(proto.triangles) == 0:
                 continue
@@ -299,4 +318,12 @@ class MeshCollector:
                 t0 += k * T
         if dropped:
             self._warn(f"{dropped} zero-area triangle(s) were dropped.")
+        for what, names in (("Triangles with NaN or infinite vertex coordinates were dropped", nonfinite),
+                            ("Instances with a NaN or infinite transform were dropped", bad_transform)):
+            for name in dict.fromkeys(names):
+                group = getattr(self._warn, "group", None)
+                if group is not None:
+                    group(what, name)
+                else:
+                    self._warn(f"{what}: '{name}'.")
         return Mesh(vertices=vertices, triangles=triangles, normals=normals, material=material, uvs=uvs)

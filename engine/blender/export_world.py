@@ -169,6 +169,9 @@ def _world_fields(world, warn) -> dict:
     if out is None:
         warn(f"{owner}: no World Output node; the background is black.")
         return dict(color=np.zeros(3))
+    volume = out.inputs.get("Volume")
+    if volume is not None and follow_link(volume) is not None:
+        warn(f"{owner}: world volume shaders are not supported and are ignored.")
     node = follow_link(out.inputs["Surface"])
     if node is None:
         return dict(color=np.zeros(3))

@@ -26,6 +26,7 @@ import traceback
 
 from ..errors import Cancelled, EmberError
 from ..session import RenderSession
+from ..validation import check_frame_memory
 from .export import export_scene
 from .result import ResultWriter, blender_border
 
@@ -221,6 +222,7 @@ def render(engine, depsgraph):
     try:
         layer = depsgraph.view_layer.name
         width, height = int(engine.resolution_x), int(engine.resolution_y)
+        check_frame_memory(width, height)  # before Blender allocates a result of that size
         border = blender_border(depsgraph.scene.render, width, height)
         writer = ResultWriter(engine, layer, width, height, border)
         stats, image = _render_layer(engine, depsgraph, writer, layer)

@@ -11,6 +11,10 @@ Emissive triangles are ordinary (two-sided) geometry found through `light_of_pri
 
 Seed 000: one light per shading point, chosen with probability proportional to its power;
 that pmf enters every light-sampling pdf (also the one used for the emitter-hit MIS weight).
+As Cycles, a light of negative strength emits negative radiance and is chosen by |power|
+(the estimate of a signed integrand stays unbiased). Lights of zero power (a sun in a scene
+without geometry, a zero-width spot cone) are never chosen; with no power at all nothing is
+light-sampled (`empty`) and emission is found by rays only, with MIS weight 1.
 """
 from __future__ import annotations
 
@@ -59,7 +63,7 @@ class LightSet:
         self.scene_radius = scene_radius
         # Emissive triangles.
         tri_Le = materials.emission[mesh.material] if mesh.n_triangles else np.zeros((0, 3))
-        emissive = (avg(tri_Le) > 0) & (accel.area > 0) if mesh.n_triangles else np.zeros(0, bool)
+        emissive = np.any(tri_Le != 0, axis=-1) & (accel.area > 0) if mesh.n_triangles else np.zeros(0, bool)
         self.tri_prim = np.flatnonzero(emissive)
         self.tri_Le = tri_Le[self.tri_prim]
         self.tri_area = accel.area[self.tri_prim]
@@ -74,8 +78,9 @@ class LightSet:
         self.world_visible = bool(world.visible)
         # Environment power as pbrt-v4's infinite lights: pi R^2 x integral of L over the sphere.
         env_power = [np.pi * scene_radius**2 * avg(self.env.power_integral)] if self.env is not None else []
-        power = np.concatenate([shapes.analytic_power(lights, scene_radius),
-                                2.0 * np.pi * self.tri_area * avg(self.tri_Le), env_power])
+        power = np.abs(np.concatenate([shapes.analytic_power(lights, scene_radius),
+                                       2.0 * np.pi * self.tri_area * avg(np.abs(self.tri_Le)), env_power]))
+        power = np.where(np.isfinite(power), power, 0.0)
         self.count = len(power)
         self.env_index = self.count - 1 if self.env is not None else -1
         self.select = sampling.Distribution1D(power) if self.count and power.sum() > 0 else None
@@ -92,6 +97,9 @@ class LightSet:
         return self.select is None
 
     def pmf(self, index: np.ndarray) -> np.ndarray:
+        """Selection probability of lights `index` (0 for all when nothing has power)."""
+        if self.select is None:
+            return np.zeros(np.shape(index))
         return self.select.pmf(index)
 
     # ---- next-event estimation ------------------------------------------------------------
@@ -142,7 +150,7 @@ class LightSet:
         wi, Le, pdf_dir, target, finite = (out[k] for k in ("wi", "Le", "pdf_dir", "target", "finite"))
         delta = self.delta[index]
         pdf = np.where(delta, pmf, pmf * pdf_dir)
-        valid = (pdf > 0) & np.isfinite(pdf) & (max3(Le) > 0)
+        valid = (pdf > 0) & np.isfinite(pdf) & (max3(np.abs(Le)) > 0)  # negative lights count
         return LightSample(wi=wi, Le=Le, pdf=np.where(valid, pdf, 0.0), delta=delta, target=target,
                            target_prim=target_prim, finite=finite, valid=valid)
 
@@ -194,7 +202,7 @@ class LightSet:
             hit = hit & ~camera
         if not hit.any():
             return
-        pdf_light = self.select.pmf(np.array([i]))[0] * pdf_dir
+        pdf_light = self.pmf(np.array([i]))[0] * pdf_dir
         w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
         a = np.where(hit, gain * w, 0.0)
         for k in range(3):
