@@ -5,6 +5,8 @@ The statistical tests use the exact unbiasedness of the (k-1)/(pi r^2) form on a
 (module docstring): estimates at query points whose neighbourhoods do not overlap are
 independent, so their mean is z-tested with the sample variance, Sidak-corrected.
 """
+import sys
+
 import numpy as np
 import pytest
 from scipy import stats as scipy_stats
@@ -308,6 +310,21 @@ def test_memory_per_photon_and_no_copies():
         assert photon_map.arrays[key] is a
     E, _ = photon_map.irradiance(rng.random((10, 3)), wi[:10], K, 0.1)
     assert np.all(np.isfinite(E))
+
+
+def test_ckdtree_fallback_gives_the_same_estimates(monkeypatch):
+    rng = np.random.default_rng(13)
+    photon_map = _gradient_map(rng, 20_000, 20_000)
+    q = _plane(0.1 + 0.8 * rng.random((200, 2)))
+    n = np.tile(UP, (len(q), 1))
+    r = np.full(len(q), 0.03)
+    expected = photon_map.irradiance(q, n, 20, 0.05, "cone"), photon_map.gather_radius(q, n, r)
+    monkeypatch.setitem(sys.modules, "pykdtree.kdtree", None)  # import fails: scipy's cKDTree
+    fallback = PhotonMap.from_packed(photon_map.arrays, photon_map.n_emitted)
+    assert fallback._index.kind == "cKDTree"
+    got = fallback.irradiance(q, n, 20, 0.05, "cone"), fallback.gather_radius(q, n, r)
+    for a, b in zip(expected, got):
+        assert np.allclose(a[0], b[0], rtol=1e-5) and np.allclose(a[1], b[1], rtol=1e-5)
 
 
 def test_empty_and_small_maps():

@@ -137,7 +137,7 @@ class _Index:
         self.leafsize = leafsize
         try:
             from pykdtree.kdtree import KDTree
-        except ImportError:  # pragma: no cover - the fallback where the wheel is missing
+        except ImportError:  # the fallback where the wheel is missing (tested)
             from scipy.spatial import cKDTree
 
             self.kind = "cKDTree"
