@@ -103,9 +103,17 @@ def test_stop_request_ends_the_render_early():
 
 
 def test_time_limit_stops_before_all_samples():
-    session = RenderSession(furnace_box(samples=100000, batch_size=64, time_limit=1e-6))
+    """8 x 8 pixels and batches of 64 paths: every batch is a whole pass, and the batches in
+    flight when the limit passes are finished and kept, so at least one pass is done; 10^5
+    passes cannot all fit in 0.2 s. The image is the unbiased estimate of what was done."""
+    session = RenderSession(furnace_box(albedo=0.5, samples=100000, width=8, height=8, batch_size=64,
+                                        time_limit=0.2, threads=1))
     stats = session.run()
-    assert not stats.cancelled and stats.samples < 100000
+    assert not stats.cancelled and stats.stopped_by == "time limit"
+    assert 1 <= stats.samples < 100000
+    assert np.all(session.film.count == stats.samples)  # whole passes only
+    m, se = image_mean_and_se(session.film.mean(), session.film.variance_of_mean())
+    assert abs(m - 2.0) < 5 * se + 1e-12
 
 
 def test_white_object_in_constant_world_is_invisible():
@@ -144,10 +152,22 @@ def test_strategies_agree_on_a_sphere_light(radius, soft):
         assert abs(m - exact_enclosure(radius, soft)) < 4 * se + 0.003, strategy
 
 
-def test_noise_target_stops_the_render():
-    session = RenderSession(furnace_box(albedo=0.5, samples=100000, noise_target=0.05))
+@pytest.mark.parametrize("pattern", ["sobol", "random"])
+def test_noise_target_stops_the_render(pattern):
+    """The render stops at the first pass whose estimate is within the target, and the error
+    it actually has then (against the exact 1) is within the target too: the estimate is
+    1.0-1.3x the true error (test_noise_estimate_follows_the_true_error), so at most the
+    target, up to the estimate's own spread (a few %)."""
+    target = 0.02
+    session = RenderSession(sphere_with_point_light(radius=0.3, samples=100000, width=32, height=32,
+                                                    noise_target=target, pattern=pattern, seed=2))
     stats = session.run()
-    assert stats.stopped_by == "noise target" and stats.noise <= 0.05 and stats.samples < 100000
+    assert stats.stopped_by == "noise target" and stats.noise <= target and 4 <= stats.samples < 100000
+    m = session.film.mean().mean(axis=2)
+    true = np.sqrt(np.mean((m - exact_enclosure(0.3, False)) ** 2 / (m + 0.01) ** 2))
+    assert true <= 1.1 * target, (stats.samples, stats.noise, true)
+    # It stopped at the first pass within the target: one pass fewer would not have been.
+    assert stats.noise > 0.6 * target, stats.noise
 
 
 def test_worker_processes_give_the_same_image_as_one_thread():
