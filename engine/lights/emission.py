@@ -127,16 +127,18 @@ def sample_spot_cos(u, cos_half, smooth):
     """mu = cos(angle to the axis) (N,) with density att(mu) / M on [-1, 1], from u (N,).
 
     cos_half, smooth (N,). The flat cap [cos_start, 1] is chosen with probability
-    (1 - cos_start) / M and is uniform in mu; the ramp inverts its CDF (`_ramp_inverse`)."""
+    (1 - cos_start) / M and is uniform in mu; the ramp inverts its CDF (`_ramp_inverse`). mu
+    decreases monotonically with u."""
     cos_start, x_max, mass = spot_mass(cos_half, smooth)
     p_flat = np.divide(1.0 - cos_start, mass, out=np.ones_like(mass), where=mass > 0)
     in_flat = u < p_flat
     # flat: 1 - mu uniform on [0, 1 - cos_start]
     v_flat = np.divide(u, p_flat, out=np.zeros_like(u), where=p_flat > 0)
     mu_flat = 1.0 - v_flat * (1.0 - cos_start)
-    # ramp: F(x) / F(x_max) = v with F(x) = x^3 - x^4 / 2
+    # ramp: F(x) / F(x_max) = 1 - v with F(x) = x^3 - x^4 / 2 (mu falls as u grows: one monotone
+    # map from u to mu, so stratified u stay stratified)
     v_ramp = np.clip(np.divide(u - p_flat, 1.0 - p_flat, out=np.zeros_like(u), where=p_flat < 1.0), 0.0, 1.0)
-    x = np.minimum(_ramp_inverse(v_ramp * x_max**3 * (1.0 - 0.5 * x_max)), x_max)
+    x = np.minimum(_ramp_inverse((1.0 - v_ramp) * x_max**3 * (1.0 - 0.5 * x_max)), x_max)
     mu_ramp = cos_half + smooth * x
     return np.where(in_flat, mu_flat, mu_ramp)
 
