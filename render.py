@@ -24,7 +24,8 @@ The .blend is only read: settings are changed on the loaded copy in memory and n
 is saved. The image is written to a hidden temporary file beside the output, checked, and
 renamed into place: a failed write (full disk, permission) exits 1 and leaves a previous
 file at that path untouched. Exit codes: 0 done, 1 render failed, 2 bad input (file, option, scene),
-130 interrupted (Ctrl-C; a second Ctrl-C stops at once).
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM): one line, the render stops within about
+a second (a second signal stops at once) and no output file is written.
 
 Design: the render goes through bpy.ops.render.render with the EMBER engine, the same
 path as F12 in Blender (engine/blender/final.py: export, progressive result writes,
@@ -44,7 +45,7 @@ import math
 import tempfile
 import time
 
-EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_TERMINATED = 0, 1, 2, 130, 143
 HERE = pathlib.Path(__file__).resolve().parent
 IN_BLENDER = "bpy" in sys.modules  # Blender's own interpreter has bpy loaded before -P runs
 BLEND_MAGIC = (b"BLENDER", b"\x28\xb5\x2f\xfd", b"\x1f\x8b")  # plain, zstd, gzip
@@ -180,7 +181,6 @@ class _Follower:
     def __init__(self, show_progress: bool, reference=None):
         self.show_progress = show_progress
         self.reference = reference  # _Reference or None
-        self.interrupted = False
         self.bar = None
         self.bar_layer = None
         self.layers = {}  # layer -> (stats, image, border)
@@ -188,7 +188,7 @@ class _Follower:
 
     # final.RenderListener interface -------------------------------------------------
     def should_stop(self):
-        return self.interrupted
+        return STOP.requested
 
     def on_export(self, layer, text):
         if self.show_progress and self.bar is None:
@@ -228,12 +228,100 @@ class _Follower:
             self.bar.close()
             self.bar = None
 
-    def sigint(self, signum, frame):
-        if self.interrupted:  # second Ctrl-C: stop now
+
+
+class _Stop:
+    """SIGINT (Ctrl-C) and SIGTERM: one line on stderr, then stop within about a second.
+
+    Mostly (`soft`) the request is a flag: checked between the phases (bpy import, file
+    load, add-on registration: a KeyboardInterrupt inside Blender's own start-up code
+    crashed it) and polled by the render loop (export and sampling stop at their next
+    check, ~0.25 s; worker processes are killed). While the image is written the signal
+    raises KeyboardInterrupt at once, which removes the half-written temporary. Python runs signal handlers only between bytecodes, so a
+    watcher thread woken by the C-level handler (signal.set_wakeup_fd) ends the process
+    GRACE seconds after the first signal if it is still running (a long build or file load
+    in C), and at once after a second one. No output file is written after a stop."""
+
+    GRACE = 0.7  # seconds: the render loop itself stops in ~0.3 s
+
+    def __init__(self):
+        self.requested = False
+        self.signum = None
+        self.soft = True  # Blender's own Python (bpy import, add-on loading) must not be interrupted
+        self.output = None  # the output path, whose temporaries an abort removes
+        self._printed = False
+
+    @property
+    def code(self) -> int:
+        return EXIT_TERMINATED if self.signum == signal.SIGTERM else EXIT_INTERRUPTED
+
+    def install(self) -> None:
+        import threading
+        r, w = os.pipe()
+        os.set_blocking(w, False)
+        signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self)
+        threading.Thread(target=self._watch, args=(r,), daemon=True, name="render.py-stop").start()
+
+    def check(self) -> None:
+        """Between phases: stop if a signal came."""
+        if self.requested:
             raise KeyboardInterrupt
-        self.interrupted = True
-        sys.stderr.write("\nStopping after the current batch (Ctrl-C again to abort)...\n")
-        sys.stderr.flush()
+
+    def _say(self) -> None:
+        if not self._printed:
+            self._printed = True
+            sys.stderr.write(("\n" if sys.stderr.isatty() else "") + "Interrupted.\n")
+            sys.stderr.flush()
+
+    def __call__(self, signum, frame):
+        """The Python-level handler (main thread)."""
+        if self.requested and self.signum is not None and self._printed:
+            return  # the watcher counts repeated signals
+        self.requested, self.signum = True, signum
+        self._say()
+        if not self.soft:
+            raise KeyboardInterrupt
+
+    def _watch(self, fd: int) -> None:
+        import time as _time
+        deadline = None
+        while True:
+            try:
+                data = os.read(fd, 64)
+            except OSError:
+                return
+            if not data:
+                return
+            if self.signum is None:
+                self.signum = data[0]
+            self.requested = True
+            if deadline is not None or len(data) > 1:  # a second signal: stop now
+                self.abort()
+            deadline = _time.monotonic() + self.GRACE
+            import threading
+            timer = threading.Timer(self.GRACE, self.abort)
+            timer.daemon = True
+            timer.start()
+
+    def abort(self) -> None:
+        """End the process now, without leaving a temporary output file behind."""
+        self._say()
+        if self.output is not None:
+            try:
+                from ember.engine import imageio
+                imageio.remove_stale_temporaries(self.output, include_own=True)
+            except Exception:
+                pass
+        try:
+            sys.stdout.flush()
+        except Exception:
+            pass
+        os._exit(self.code)
+
+
+STOP = _Stop()
 
 
 class _Reference:
@@ -366,7 +454,9 @@ def run(argv: list[str]) -> int:
         from ember.engine import imageio, metrics
         reference = _Reference(ref_path, metrics, imageio)
 
+    STOP.check()
     import bpy  # after the cheap checks: importing the bpy module takes a moment
+    STOP.check()
 
     if blend is not None:
         try:
@@ -378,8 +468,10 @@ def run(argv: list[str]) -> int:
     else:
         blend = pathlib.Path(bpy.data.filepath)
 
+    STOP.check()
     ember = _load_ember()
     ember.register()
+    STOP.check()
     from ember.engine.blender import final
 
     scene = bpy.context.scene
@@ -395,20 +487,18 @@ def run(argv: list[str]) -> int:
 
     follower = _Follower(show_progress=not args.no_progress and sys.stderr.isatty(), reference=reference)
     final.listeners.append(follower)
-    previous = signal.signal(signal.SIGINT, follower.sigint)
     blender_error = None
+    STOP.output = output
+    STOP.check()
     try:
         bpy.ops.render.render(write_still=False)
     except RuntimeError as e:  # ERROR reports (ours and Blender's own) raise here
         blender_error = _clean_blender_error(e)
     finally:
-        signal.signal(signal.SIGINT, previous)
         follower._close_bar()
         final.listeners.remove(follower)
-
-    if follower.interrupted:
-        print("Interrupted.", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    STOP.check()
+    STOP.soft = False  # from here a signal interrupts the write at once
     if follower.errors:
         message, user_error = follower.errors[0]
         print(f"render.py: error: {message}", file=sys.stderr)
@@ -475,14 +565,16 @@ def run(argv: list[str]) -> int:
 def main() -> int:
     argv = sys.argv[sys.argv.index("--") + 1:] if IN_BLENDER and "--" in sys.argv else \
         ([] if IN_BLENDER else sys.argv[1:])
+    STOP.install()
     try:
         return run(argv)
     except UsageError as e:
         print(f"render.py: error: {e}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
-        print("Interrupted.", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        if not STOP.requested:  # raised by Python itself (no handler yet)
+            print("Interrupted.", file=sys.stderr)
+        return STOP.code
 
 
 if __name__ == "__main__":

@@ -225,9 +225,10 @@ def _disk_full(directory, margin: int = 1 << 16) -> bool:
     return st.f_bavail * st.f_frsize < margin
 
 
-def remove_stale_temporaries(path: str | os.PathLike) -> int:
+def remove_stale_temporaries(path: str | os.PathLike, include_own: bool = False) -> int:
     """Delete temporaries of `path` left by processes that no longer run (killed during a
-    write). Returns how many were removed."""
+    write), and this process's own with include_own (before it ends abruptly). Returns how
+    many were removed."""
     path = pathlib.Path(path)
     directory = path.parent if str(path.parent) else pathlib.Path(".")
     prefix = f".{path.name}{_TMP_TAG}"
@@ -238,7 +239,10 @@ def remove_stale_temporaries(path: str | os.PathLike) -> int:
         return 0
     for name in names:
         pid_text = name[len(prefix):].split("-", 1)[0]
-        if not pid_text.isdigit() or _process_alive(int(pid_text)):
+        if not pid_text.isdigit():
+            continue
+        pid = int(pid_text)
+        if _process_alive(pid) and not (include_own and pid == os.getpid()):
             continue
         try:
             os.unlink(directory / name)
