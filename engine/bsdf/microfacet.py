@@ -15,15 +15,14 @@ Conventions, checked against Blender Cycles (blender/blender intern/cycles):
 - A lobe with alpha^2 <= 2e-10 (BSDF_ROUGHNESS_SQ_THRESH; roughness <= 0.00376) is a perfect
   mirror in Cycles: it has no eval and is sampled as a delta. `is_delta` marks those rows; the
   functions here must not be used for them (D would overflow toward a Dirac).
-- Cycles' "Multiscatter GGX" (the default distribution of Glossy, Glass, Metallic and
-  Principled in Blender 5.0) scales this single-scattering lobe to restore the energy lost to
-  masking (Kulla & Conty 2017, as bsdf_microfacet.h microfacet_ggx_preserve_energy):
-  `multiscatter_scale` below, for reflection lobes. Not covered: the same compensation on
-  glass (Cycles' 3D ggx_glass_E tables); single-scattering glass of IOR 1.5 loses 1-5% of the
-  energy at roughness 0.55 (10-22% seen from inside) and 2-26% at roughness 1 (40-60%).
+- Not modelled: Cycles' "Multiscatter GGX" (the default distribution of Glossy, Glass,
+  Metallic and Principled in Blender 5.0), which scales this single-scattering lobe to restore
+  the energy lost to masking (Kulla & Conty 2017, bsdf_microfacet.h
+  microfacet_ggx_preserve_energy). The exporter renders it as this lobe, which reflects less at
+  high roughness (E(roughness 0.5, normal incidence) = 0.915; glass of IOR 1.5 loses 1-5 % at
+  roughness 0.55 and 2-26 % at roughness 1). An energy-compensation table that was computed
+  here but never used by any closure was removed (issue 12).
 """
-from functools import lru_cache
-
 import numpy as np
 
 from .. import sampling
@@ -147,111 +146,3 @@ def sample_reflection(alpha, wo, u):
     num = G1(alpha, wo) * D(alpha, h)
     pdf = np.divide(num, 4.0 * wo[:, 2], out=np.zeros(len(wo)), where=ok)
     return wi, h, pdf
-
-
-# ----------------------------------------------------------------------------------------------
-# Energy compensation ("Multiscatter GGX")
-#
-# Cycles tabulates the directional albedo E(roughness, cos_o) of this lobe with F = 1 on a
-# 32 x 32 node grid (roughness = sqrt(alpha) and cos_o at i / 31, clamped to >= 1e-4;
-# app/cycles_precompute.cpp "ggx_E") and its cosine-weighted mean E_avg = 2 int E mu dmu
-# ("ggx_Eavg"), and reads them by linear interpolation (kernel/util/lookup_table.h). Cycles fills
-# them by Monte Carlo; here they are computed once, on first use (under a second), by
-# Gauss-Legendre quadrature over the half vector, which resolves any alpha and integrates
-# exactly up to the horizon: within 4e-4 of the converged integral (8e-4 at cos_o = 1e-4), and
-# within 1e-5 of Cycles' shipped values away from grazing (E(0.5, 1) = 0.91528,
-# E_avg(0.5) = 0.88204).
-
-_ALBEDO_GRID = 32
-_ALBEDO_NODES = 32  # Gauss-Legendre nodes per axis (half-vector azimuth and polar; cos_o)
-
-
-def _directional_albedo(alpha, mu):
-    """E (K,) = int f cos_i d omega_i with F = 1, for wo = (sqrt(1 - mu^2), 0, mu), alpha > 0.
-
-    Written over the half vector h = (theta, phi): E = int G2 / G1 D_wo(h) [wi above] d omega_h,
-    in the coordinate v = 1 - (1 + tan^2(theta) / alpha^2)^(-1/2), where D cos(theta) d omega_h
-    = (1 - v) dv dphi / pi and the visible-normal factor stays bounded. wi = reflect(wo, h) is
-    above the surface exactly for 2 theta < pi - atan2(mu, sin_o cos(phi)), the upper limit of
-    the polar integral; the lobe is symmetric in phi, so phi runs over [0, pi], twice.
-    """
-    x, w = np.polynomial.legendre.leggauss(_ALBEDO_NODES)
-    t, wt = 0.5 * (x + 1.0), 0.5 * w  # nodes and weights on [0, 1]
-    alpha, mu = alpha[:, None, None], mu[:, None, None]
-    sin_o = np.sqrt(1.0 - mu * mu)
-    phi = np.pi * t[None, :, None]
-    theta_max = 0.5 * (np.pi - np.arctan2(mu, sin_o * np.cos(phi)))
-    v_max = 1.0 - 1.0 / np.sqrt(1.0 + (np.tan(theta_max) / alpha) ** 2)
-    v = v_max * t[None, None, :]
-    tan_t = alpha * np.sqrt(1.0 / (1.0 - v) ** 2 - 1.0)
-    cos_t = 1.0 / np.sqrt(1.0 + tan_t * tan_t)
-    sin_t = tan_t * cos_t
-    shape = np.broadcast_shapes(v.shape, phi.shape)
-    h = np.stack(np.broadcast_arrays(sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t), -1)
-    wo = np.stack(np.broadcast_arrays(sin_o, 0.0 * sin_o, mu), -1)
-    wo, h = np.broadcast_to(wo, shape + (3,)).reshape(-1, 3), h.reshape(-1, 3)
-    cos_oh = dot(wo, h)
-    g2 = G2(np.broadcast_to(alpha, shape).ravel(), wo, reflect(wo, h)).reshape(shape)
-    integrand = g2 * cos_oh.reshape(shape) / (mu * cos_t) * (1.0 - v) / np.pi
-    weights = (np.pi * wt)[None, :, None] * (v_max * wt[None, None, :])
-    return 2.0 * np.sum(integrand * weights, axis=(1, 2))
-
-
-@lru_cache(maxsize=1)
-def _albedo_tables():
-    """(E (GRID, GRID) indexed [roughness node, cos_o node], E_avg (GRID,)); read-only."""
-    nodes = np.clip(np.arange(_ALBEDO_GRID) / (_ALBEDO_GRID - 1), 1e-4, 1.0)
-    x, w = np.polynomial.legendre.leggauss(_ALBEDO_NODES)
-    mu_avg = 0.5 * (x + 1.0)
-    mu = np.concatenate([nodes, mu_avg])  # table nodes, then Gauss nodes for E_avg
-    # Cycles samples an alpha^2 <= 2e-10 lobe as a mirror: all the energy is reflected.
-    E_all = np.ones((_ALBEDO_GRID, len(mu)))
-    for i, rough in enumerate(nodes):  # one roughness at a time keeps the arrays small
-        if not is_delta(rough * rough):
-            E_all[i] = _directional_albedo(np.full(len(mu), rough * rough), mu)
-    E = E_all[:, :_ALBEDO_GRID].copy()
-    E_avg = np.sum(E_all[:, _ALBEDO_GRID:] * 2.0 * mu_avg * 0.5 * w, axis=1)
-    E.flags.writeable = False
-    E_avg.flags.writeable = False
-    return E, E_avg
-
-
-def _grid_position(x):
-    """(index, next index, fraction) of x in [0, 1] on the table nodes i / (GRID - 1)."""
-    x = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0) * (_ALBEDO_GRID - 1)
-    i = np.minimum(np.floor(x).astype(np.int64), _ALBEDO_GRID - 2)
-    return i, i + 1, x - i
-
-
-def albedo(alpha, cos_o):
-    """Directional albedo E (N,) of the reflection lobe with F = 1 (table, bilinear)."""
-    E, _ = _albedo_tables()
-    ri, rn, tr = _grid_position(np.sqrt(np.asarray(alpha, dtype=np.float64)))
-    mi, mn, tm = _grid_position(cos_o)
-    return ((1.0 - tr) * ((1.0 - tm) * E[ri, mi] + tm * E[ri, mn])
-            + tr * ((1.0 - tm) * E[rn, mi] + tm * E[rn, mn]))
-
-
-def average_albedo(alpha):
-    """Cosine-weighted average albedo E_avg (N,) = 2 int E(mu) mu dmu (table, linear)."""
-    _, E_avg = _albedo_tables()
-    ri, rn, tr = _grid_position(np.sqrt(np.asarray(alpha, dtype=np.float64)))
-    return (1.0 - tr) * E_avg[ri] + tr * E_avg[rn]
-
-
-def multiscatter_scale(alpha, cos_o, F_avg):
-    """Factor (N,3) on f and on the sample weight (not the pdf) of Cycles' Multiscatter GGX.
-
-    1 + F_ms (1 - E) / E with F_ms = F_avg E_avg / (1 - F_avg (1 - E_avg)), E = E(cos_o) at the
-    view direction (so the compensated lobe is a per-point scale, as in Cycles). F_avg (N,3) is
-    the cosine-weighted average Fresnel (Cycles' Fss, bsdf_microfacet.h setup_fresnel_*): the
-    node Color (clamped at 0) for the Glossy BSDF, whose colour multiplies the lobe as a
-    constant Fresnel; fresnel.f82_tint_average for Principled metallic;
-    fresnel.dielectric_remapped_average for Principled specular. With F_avg = 1 the lobe's
-    albedo becomes exactly 1 (up to the table). Alpha below the delta threshold gives 1.
-    """
-    E = albedo(alpha, cos_o)[:, None]
-    E_avg = average_albedo(alpha)[:, None]
-    F_avg = np.asarray(F_avg, dtype=np.float64)
-    F_ms = F_avg * E_avg / (1.0 - F_avg * (1.0 - E_avg))
-    return 1.0 + F_ms * (1.0 - E) / E
