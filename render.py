@@ -558,7 +558,7 @@ def run(argv: list[str]) -> int:
     nonfinite = sum(int(getattr(s, "nonfinite", 0)) for s, _, _ in follower.layers.values())
     print(f"Ember: {blend.name} -> {output}: {w}x{h}, {samples} samples, "
           f"render {render_s:.2f} s, total {time.perf_counter() - t_start:.2f} s, "
-          f"{_fmt_rate(rays / max(render_s, 1e-9))}{extra}, {nonfinite} non-finite samples", flush=True)
+          f"{_fmt_rate(rays / max(render_s, 1e-9))}, {nonfinite} non-finite samples{extra}", flush=True)
     return EXIT_OK
 
 
