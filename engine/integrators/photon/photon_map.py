@@ -89,6 +89,30 @@ def decode_octahedral(e: np.ndarray) -> np.ndarray:
     return out
 
 
+def _spread_bits(v):
+    """10-bit integers (uint32) -> their bits at every third position (Morton 'part1by2')."""
+    v = (v | (v << 16)) & np.uint32(0x030000FF)
+    v = (v | (v << 8)) & np.uint32(0x0300F00F)
+    v = (v | (v << 4)) & np.uint32(0x030C30C3)
+    return (v | (v << 2)) & np.uint32(0x09249249)
+
+
+def morton_order(p: np.ndarray) -> np.ndarray:
+    """Permutation (M,) that sorts points p (M,3) along a Z-order curve (1024^3 cubic cells over
+    their bounding cube). Photons adjacent in space then sit together in memory, so the gathers of a k-NN
+    query hit the cache: 2.5x faster estimates at 1M photons (bench/photon_map_study.py)."""
+    if len(p) == 0:
+        return np.zeros(0, np.int64)
+    lo = p.min(axis=0)
+    extent = float(np.max(p.max(axis=0) - lo))
+    scale = 1023.0 / extent if extent > 0 else 0.0  # cubic cells: the curve is isotropic
+    code = np.zeros(len(p), np.uint32)
+    for axis in range(3):
+        cell = ((p[:, axis] - lo[axis]) * scale).astype(np.uint32)
+        code |= _spread_bits(cell) << np.uint32(axis)
+    return np.argsort(code, kind="stable")
+
+
 # ----------------------------------------------------------------------------------------------
 # Kernels: weight W(t) of t = d^2 / r^2 in [0, 1) and c = int_disc W / (pi r^2)
 
@@ -203,13 +227,16 @@ class PhotonMap:
 
     @staticmethod
     def pack(position, wi, flux, normal) -> dict[str, np.ndarray]:
-        """Compact arrays, 32 B per photon: position (M,3) float32, wi and normal (M,2) int16
-        octahedral, flux (M,3) float32. Float32 C-contiguous inputs are used without a copy."""
+        """Compact arrays, 32 B per photon, in Morton order (`morton_order`; photons are a set,
+        their order carries nothing): position (M,3) float32, wi and normal (M,2) int16
+        octahedral, flux (M,3) float32."""
+        position = np.asarray(position).reshape(-1, 3)
+        order = morton_order(position)
         return {
-            "position": np.ascontiguousarray(position, dtype=np.float32).reshape(-1, 3),
-            "wi": encode_octahedral(np.asarray(wi).reshape(-1, 3)),
-            "normal": encode_octahedral(np.asarray(normal).reshape(-1, 3)),
-            "flux": np.ascontiguousarray(flux, dtype=np.float32).reshape(-1, 3),
+            "position": take(position, order).astype(np.float32, copy=False),
+            "wi": encode_octahedral(take(np.asarray(wi).reshape(-1, 3), order)),
+            "normal": encode_octahedral(take(np.asarray(normal).reshape(-1, 3), order)),
+            "flux": take(np.asarray(flux).reshape(-1, 3), order).astype(np.float32, copy=False),
         }
 
     @classmethod
@@ -396,11 +423,14 @@ class RadiancePhotons:
 
     @staticmethod
     def pack(position, normal, E) -> dict[str, np.ndarray]:
-        """position (R,3) float32, normal (R,2) int16 octahedral, E (R,3) float32: 28 B each."""
+        """position (R,3) float32, normal (R,2) int16 octahedral, E (R,3) float32: 28 B each,
+        in Morton order as PhotonMap.pack."""
+        position = np.asarray(position).reshape(-1, 3)
+        order = morton_order(position)
         return {
-            "position": np.ascontiguousarray(position, dtype=np.float32).reshape(-1, 3),
-            "normal": encode_octahedral(np.asarray(normal).reshape(-1, 3)),
-            "E": np.ascontiguousarray(E, dtype=np.float32).reshape(-1, 3),
+            "position": take(position, order).astype(np.float32, copy=False),
+            "normal": encode_octahedral(take(np.asarray(normal).reshape(-1, 3), order)),
+            "E": take(np.asarray(E).reshape(-1, 3), order).astype(np.float32, copy=False),
         }
 
     @classmethod
@@ -428,27 +458,35 @@ class RadiancePhotons:
 
     def lookup(self, p, n, r_max=np.inf, return_found: bool = False):
         """Irradiance E (N,3) [W m^-2] at points p (N,3) with unit normals n (N,3): the E of the
-        nearest radiance photon within r_max [m] whose normal agrees with n (among the
-        LOOKUP_K nearest); 0 where none does. With return_found, also the (N,) bool mask."""
+        nearest radiance photon within r_max [m] (scalar or (N,)) whose normal agrees with n;
+        0 where none does. One query of the LOOKUP_K nearest per point; the rare point whose
+        candidates all disagree (a corner) is asked again with 4x as many. With return_found,
+        also the (N,) bool mask of points that found one."""
         p = np.asarray(p).reshape(-1, 3)
         n = np.asarray(n).reshape(-1, 3)
         N = len(p)
         out = np.zeros((N, 3))
         found = np.zeros(N, bool)
-        k = min(self.LOOKUP_K, len(self))
-        bound = float(np.max(r_max)) if np.ndim(r_max) else float(r_max)
         r2_max = _per_point(r_max, N) ** 2
-        for s, e in _chunks(N, max(k, 1)):
-            d2, idx = self._index.query(p[s:e], k, bound)
-            inside = d2 < r2_max[s:e, None]
-            rows, cols = np.nonzero(inside)
-            j = idx[rows, cols]
-            agree = dot(decode_octahedral(take(self._normal, j)), take(n, rows + s)) > self.COS_NORMAL_MIN
-            valid = np.zeros(inside.shape, bool)
-            valid[rows[agree], cols[agree]] = True
-            first = np.argmax(valid, axis=1)  # the nearest agreeing candidate
-            hit = valid[np.arange(e - s), first]
-            best = idx[np.arange(e - s), first][hit]
-            out[s:e][hit] = take(self.E, best)
-            found[s:e] = hit
+        pending = np.arange(N) if len(self) else np.zeros(0, np.int64)
+        k = self.LOOKUP_K
+        while len(pending):
+            k = min(k, len(self))
+            unresolved = []
+            for s, e in _chunks(len(pending), k):
+                q = pending[s:e]
+                d2, idx = self._index.query(take(p, q), k, np.sqrt(r2_max[q].max()))
+                inside = d2 < r2_max[q, None]
+                rows, cols = np.nonzero(inside)
+                j = idx[rows, cols]
+                agree = dot(decode_octahedral(take(self._normal, j)), take(n, q[rows])) > self.COS_NORMAL_MIN
+                valid = np.zeros(inside.shape, bool)
+                valid[rows[agree], cols[agree]] = True
+                first = np.argmax(valid, axis=1)  # the nearest agreeing candidate
+                hit = valid[np.arange(e - s), first]
+                out[q[hit]] = take(self.E, idx[np.arange(e - s), first][hit])
+                found[q[hit]] = True
+                unresolved.append(q[~hit & inside[:, -1]])  # all k inside: more may be within r_max
+            pending = np.concatenate(unresolved) if k < len(self) else pending[:0]
+            k *= 4
         return (out, found) if return_found else out
