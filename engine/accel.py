@@ -111,7 +111,7 @@ class Accel:
         o32 = np.ascontiguousarray(o, np.float32)
         d32 = np.ascontiguousarray(d, np.float32)
         tfar = np.full(n, 1e30, np.float32) if tmax is None else np.minimum(tmax, 1e30).astype(np.float32)
-        r = self._run(o32, d32, tfar, "INTERSECT")
+        r = self._run(o32, d32, tfar.copy(), "INTERSECT")  # Embree writes hit distances into it
         prim = r["primID"].astype(np.int64)
         t = r["tfar"].astype(np.float64)
         b1, b2 = r["u"].astype(np.float64), r["v"].astype(np.float64)
@@ -146,6 +146,8 @@ class Accel:
             keep = (again_prim >= 0) & (again_prim == skip_prim[active])
             active, t_base, o32 = active[keep], t_base[keep], o32
             o32[active] = o_new[keep]
+        prim[active] = -1  # still on its own triangle after two steps through: degenerate, a miss
+        t[active] = np.inf
 
     def occluded(self, o: np.ndarray, target: np.ndarray, skip_prim: np.ndarray = None,
                  target_prim: np.ndarray = None) -> np.ndarray:

@@ -411,6 +411,15 @@ class Settings:
     pattern: str = "sobol"  # rng.PATTERNS: Owen-scrambled Sobol (as Cycles) or "random"
     noise_target: float = 0.0  # stop when Film.noise() falls below it (0 = off)
     threads: int = 0  # 0 = all cores
+    # Photon mapping (integrator "photon"); radii 0 = scene-relative defaults.
+    photons: int = 200_000  # photon paths emitted for the global map
+    caustic_photons: int = 1_000_000  # photon paths emitted for the caustic map
+    photon_k: int = 50  # nearest photons in a radiance estimate
+    global_radius: float = 0.0  # maximum search radius of the global map (m)
+    caustic_radius: float = 0.0  # maximum search radius of the caustic map (m)
+    gather_rays: int = 16  # final-gathering rays per camera sample
+    radiance_photons: bool = True  # gather rays read precomputed irradiance (Christensen 1999)
+    photon_view: str = "full"  # "full", or a debug view: "global", "caustic"
 
     def __post_init__(self):
         if self.border is None:

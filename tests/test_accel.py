@@ -125,3 +125,21 @@ def test_freed_numpy_memory_stays_in_the_heap():
     if not sys.platform.startswith("linux"):
         pytest.skip("glibc only")
     assert keep_freed_memory() is True
+
+
+def test_a_ray_leaving_its_triangle_from_the_surface_finds_what_lies_beyond():
+    """An origin exactly on its triangle (no offset, as photons leaving an emissive triangle)
+    first re-hits it at t = 0; the re-trace must still find the wall 2 m away. (Embree writes
+    hit distances into the tfar array it is given: the re-trace once read t = 0 from it as its
+    range and lost every such ray.)"""
+    quads = np.array([[(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)],
+                      [(-1, -1, 2), (1, -1, 2), (1, 1, 2), (-1, 1, 2)]], float)
+    tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    accel = Accel(_soup(tris))
+    rng = np.random.default_rng(3)
+    n = 1000
+    p = np.column_stack([rng.uniform(-0.5, 0.5, n), rng.uniform(-0.5, 0.5, n), np.zeros(n)])
+    prim = np.where(p[:, 1] < p[:, 0], 0, 2)  # which of the floor's two triangles holds p
+    d = np.tile([0.0, 0.0, 1.0], (n, 1))
+    hit = accel.intersect(p.astype(np.float32), d, skip_prim=prim)
+    assert np.all(hit.prim >= 0) and np.allclose(hit.t, 2.0, atol=1e-5)

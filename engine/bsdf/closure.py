@@ -51,6 +51,10 @@ class BSDFSample:
     pdf: np.ndarray
     delta: np.ndarray
     valid: np.ndarray
+    # (N,) eta_rel^2 of refracted samples, 1 elsewhere (None: no refraction in the batch).
+    # weight carries radiance's 1 / eta_rel^2; light particles (photons) carry flux, which
+    # does not scale, so they multiply it back (Veach 1997 sec. 5.2; pbrt-v4 TransportMode).
+    refraction_eta2: np.ndarray = None
 
 
 def _to_local(v: np.ndarray, t: np.ndarray, b: np.ndarray, n: np.ndarray) -> np.ndarray:
@@ -357,11 +361,15 @@ class Closure:
             if len(rd):
                 wi_local[rd] = wo[rd] * _MIRROR_XY
                 lobe_weight[rd] = self._fresnel(p_d, np.clip(wo[rd, 2], 0.0, 1.0)) * (wo[rd, 2] > 0)[:, None]
+        eta2 = None
         r = np.flatnonzero(kind == LOBE_DIELECTRIC)
         if len(r):
             p = pick[r]
             mirror = np.where(self.inside[live[r]][:, None], _MIRROR_Z, 1.0)
             wo_o = wo[r] * mirror
+            # eta_rel = n(wi side) / n(wo side) of a refraction; wo_o.z > 0: wo outside.
+            eta2 = np.ones(n)
+            eta2[live[r]] = np.where(wo_o[:, 2] > 0, self.ior[p], 1.0 / self.ior[p]) ** 2
             smooth = is_delta[r]
             if smooth.any():
                 rd, pd = r[smooth], p[smooth]
@@ -412,7 +420,9 @@ class Closure:
                 weight[rows] = w
                 pdf[rows] = p
         valid = (pdf > 0) & (max3(weight) > 0)
-        return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=delta, valid=valid)
+        if eta2 is not None:  # only where the sample crossed the surface
+            eta2 = np.where(dot(wi, self.ng) < 0, eta2, 1.0)
+        return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=delta, valid=valid, refraction_eta2=eta2)
 
 
 def plain_lambert_albedo(m) -> np.ndarray:

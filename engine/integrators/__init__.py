@@ -3,8 +3,9 @@ exporter and validation all derive from it."""
 from __future__ import annotations
 
 from .path import PathIntegrator
+from .photon.integrator import PhotonIntegrator
 
-REGISTRY = {cls.name: cls for cls in (PathIntegrator,)}
+REGISTRY = {cls.name: cls for cls in (PathIntegrator, PhotonIntegrator)}
 NAMES = tuple(REGISTRY)
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..vec import dot, gatherer, interpolate, length, max3, scale, take
+from ..vec import dot, gatherer, max3, scale, take
 
 from .. import camera as camera_mod
 from ..accel import Accel, offset_origin
@@ -29,6 +29,7 @@ from ..lights.light_set import LightSet
 from ..rng import Sampler
 from ..scene import Scene
 from .base import Integrator, Stage
+from .surface import flat_normals, shading_frame, towards
 
 # Random-number groups (rng.Sampler): 0 the pixel filter, then per bounce _GROUPS groups:
 # light (lanes 0-1 the point on the light, 2 its choice) and BSDF (0-1 the direction, 2 the
@@ -37,11 +38,6 @@ from .base import Integrator, Stage
 _GROUPS = 2
 _LIGHT, _BSDF = 0, 1
 
-
-
-def _towards(n: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """n flipped to the side of w (reflection leaves on the normal's side, refraction not)."""
-    return scale(n, np.where(dot(n, w) >= 0, 1.0, -1.0))
 
 
 def _accumulate(L: np.ndarray, rows: np.ndarray, c: np.ndarray) -> None:
@@ -58,12 +54,7 @@ class PathTracer:
         self.materials = scene.materials
         self.emissive_material = scene.materials.emission.mean(axis=1) > 0
         self.lambert_albedo = plain_lambert_albedo(scene.materials)
-        # Flat-shaded meshes (all corner normals of every triangle equal): no interpolation.
-        normals = scene.mesh.normals.astype(np.float64)
-        self.flat_normal = None
-        if len(normals) and np.all(normals == normals[:, :1]):
-            n0 = normals[:, 0]
-            self.flat_normal = n0 / np.maximum(length(n0), 1e-300)[:, None]
+        self.flat_normal = flat_normals(scene.mesh)  # None unless every triangle is flat-shaded
         self.max_depth = scene.settings.max_depth
         self.rr_depth = scene.settings.rr_depth
         strategy = scene.settings.strategy
@@ -122,14 +113,7 @@ class PathTracer:
                 break
             # Shading frame, flipped to the side the ray came from (two-sided, like Cycles).
             wo = -d
-            side = np.where(dot(ng, wo) >= 0, 1.0, -1.0)
-            ng_f = scale(ng, side)
-            ns = interpolate(bary, take(mesh.normals, prim)) if self.flat_normal is None else take(self.flat_normal, prim)
-            ns_len = length(ns)
-            ns = scale(ns, side / np.maximum(ns_len, 1e-300))
-            bad = (ns_len <= 1e-12) | (dot(ns, ng_f) <= 0)  # degenerate or below the surface
-            if bad.any():
-                ns[bad] = ng_f[bad]
+            ng_f, ns = shading_frame(mesh, self.flat_normal, prim, bary, ng, wo)
             bsdf = make_closure(s, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary)
             ns = bsdf.ns  # may be perturbed (normal maps)
             albedo = max3(bsdf.reflectance)
@@ -150,7 +134,7 @@ class PathTracer:
                 test = np.flatnonzero(max3(contrib) > 0)
                 if len(test):
                     rows = active[test]
-                    o_shadow = offset_origin(take(hit_p, rows), _towards(take(ng_f, rows), take(ls.wi, test)))
+                    o_shadow = offset_origin(take(hit_p, rows), towards(take(ng_f, rows), take(ls.wi, test)))
                     blocked = self.accel.occluded(o_shadow, take(ls.target, test), prim[rows], ls.target_prim[test])
                     lit = np.flatnonzero(~blocked)
                     _accumulate(L, idx[rows[lit]], take(contrib, test[lit]))
@@ -167,7 +151,7 @@ class PathTracer:
             pdf_prev = (q * bs.pdf)[keep] if self.bsdf_hits else np.zeros(len(keep))
             no_mis = bs.delta[keep] | (not self.use_nee)
             o64 = take(hit_p, keep)
-            o32 = offset_origin(o64, _towards(take(ng_f, keep), d))
+            o32 = offset_origin(o64, towards(take(ng_f, keep), d))
             skip = prim[keep]
             tmax = None
         return np.ascontiguousarray(L.T)

@@ -1,0 +1,387 @@
+"""Two-pass photon mapping with final gathering (seed 001; Jensen 1996, 2001).
+
+Rounds of stages (engine/integrators/base.py):
+  0  photons   items of PHOTON_BATCH photon paths: the global stream (every diffuse hit)
+               then the caustic stream (L S+ D photons only); reduced into the global and the
+               caustic map and published to every worker.
+  1  radiance  (radiance photons on) irradiance at every 4th global photon (Christensen
+               1999), items of slices, published: a gather ray then needs one lookup.
+  2  pixels    camera paths (film stage).
+
+A camera path follows specular surfaces (delta lobes, and lobes too sharp to store photons)
+to its first diffuse point x, where the radiance is split as Jensen does:
+  direct    one light sample, combined with the G gather rays (BSDF-sampled) by the
+            balance heuristic over all G + 1 samples (Veach's multi-sample MIS);
+  caustics  the caustic map's radiance estimate at x (L S+ D E);
+  indirect  final gathering: G BSDF-sampled rays from x; a ray's first diffuse hit y gives the
+            global map's radiance estimate there (or E(y) of the nearest radiance photon
+            times the albedo / pi); specular hits are followed without emission (that light
+            is in the caustic map).
+Emission seen directly by the camera (or through specular surfaces) is added with weight 1.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ... import camera as camera_mod
+from ... import rng
+from ...accel import offset_origin
+from ...bsdf.closure import make_closure, plain_lambert_albedo
+from ...errors import Cancelled
+from ...lights.emission import PhotonEmitter
+from ...vec import dot, gatherer, max3, scale, take
+from ..base import Integrator, Stage
+from ..surface import flat_normals, shading_frame, towards
+from .photon_map import PhotonMap, RadiancePhotons
+from .tracing import PhotonTracer, diffuse_materials
+
+PHOTON_BATCH = 1 << 16  # photon paths per work item
+RADIANCE_BATCH = 1 << 15  # radiance photons per work item
+RADIANCE_STRIDE = 4  # every 4th global photon becomes a radiance photon
+GLOBAL_RADIUS, CAUSTIC_RADIUS = 0.05, 0.0125  # x scene radius: Mitsuba 0.6's defaults
+MIN_COUNT = 8  # fewer photons than this give no estimate
+# Random-number groups of a camera path (rng.Sampler): 0 the pixel filter, then per vertex
+# light (0-1 point, 2 choice) and BSDF (0-1 direction, 2 lobe); gather rays use domain GATHER
+# with sample index = camera sample x G + ray, per bounce one BSDF group.
+_LIGHT, _BSDF, _GROUPS = 0, 1, 2
+
+
+def _accumulate(L, rows, c):
+    """L[:, rows] += c.T for L (3,N); rows may repeat (gather rays of one point)."""
+    for k in range(3):
+        L[k] += np.bincount(rows, weights=c[:, k], minlength=L.shape[1])
+
+
+class PhotonIntegrator(Integrator):
+    name = "photon"
+    label = "Photon Mapping"
+    description = ("Two-pass photon mapping: caustic map, final gathering on the global map "
+                   "(biased, consistent as photons grow)")
+
+    def __init__(self, scene):
+        super().__init__(scene)
+        s = scene.settings
+        from ...accel import _bounding_radius
+
+        v = scene.mesh.vertices
+        self.center = (0.5 * (v.min(axis=0) + v.max(axis=0))).astype(np.float64) if len(v) else np.zeros(3)
+        self.radius = _bounding_radius(v)
+        self.r_global = s.global_radius or GLOBAL_RADIUS * self.radius
+        self.r_caustic = s.caustic_radius or CAUSTIC_RADIUS * self.radius
+        # Caustics need a specular surface: without one the caustic stream is skipped.
+        m = scene.materials
+        specular = ~diffuse_materials(m) & (np.bincount(m.lobe_material, minlength=len(m.kind)) > 0)
+        used = np.unique(scene.mesh.material) if scene.mesh.n_triangles else np.zeros(0, np.int64)
+        self.has_specular = bool(np.any(specular[used]))
+        self.n_global_items = -(-s.photons // PHOTON_BATCH)
+        self.n_caustic_items = -(-s.caustic_photons // PHOTON_BATCH) if self.has_specular else 0
+        self._counters: dict = {}
+        self.global_map = self.caustic_map = self.radiance_photons = None
+        self.n_global_photons = 0
+
+    # --- render process -------------------------------------------------------------------
+    def work_items(self) -> int:
+        return self.layout.n_batches + self.n_global_items + self.n_caustic_items
+
+    def stages(self, round: int):
+        s = self.scene.settings
+        if round == 0:
+            return [Stage("photons", self.n_global_items + self.n_caustic_items, publish=True)]
+        if round == 1 and s.radiance_photons and s.photon_view == "full" and self.n_global_photons:
+            items = -(-(-(-self.n_global_photons // RADIANCE_STRIDE)) // RADIANCE_BATCH)
+            return [Stage("radiance", items, publish=True)]
+        if round in (1, 2) and not self._pixels_started:
+            self._pixels_started = True
+            return [self.pixel_stage(0, self.layout.total_paths)]
+        return []
+
+    _pixels_started = False
+
+    def reduce(self, stage, results):
+        s = self.scene.settings
+        if stage.name == "photons":
+            g, c = results[:self.n_global_items], results[self.n_global_items:]
+            cat = lambda parts, key: np.concatenate([r[key] for r in parts]) if parts else np.zeros((0, 3), np.float32)  # noqa: E731
+            out = {}
+            for prefix, parts in (("global", g), ("caustic", c)):
+                packed = PhotonMap.pack(cat(parts, "position"), cat(parts, "wi"), cat(parts, "flux"),
+                                        cat(parts, "normal"))
+                out.update({f"{prefix}.{k}": v for k, v in packed.items()})
+            self.n_global_photons = len(out["global.position"])
+            n_caustic = len(out["caustic.position"])
+            bounces = sum(int(r["bounces"][0]) for r in results)
+            nbytes = sum(v.nbytes for v in out.values())
+            self._counters["photons"] = (f"{self.n_global_photons / 1e3:.0f}k global + {n_caustic / 1e3:.0f}k caustic "
+                                         f"photons stored ({bounces / 1e6:.2f} M photon hits, {nbytes / 2**20:.0f} MiB)")
+            if not self.n_caustic_items:
+                self._counters["caustic"] = "no caustic map: no specular surface"
+            return out
+        # radiance photons: the slices in order
+        cat = lambda key: np.concatenate([r[key] for r in results])  # noqa: E731
+        return {f"radiance.{k}": v for k, v in RadiancePhotons.pack(cat("position"), cat("normal"), cat("E")).items()}
+
+    def counters(self) -> dict:
+        return dict(self._counters)
+
+    # --- tracing processes ----------------------------------------------------------------
+    def build(self, ctx) -> None:
+        super().build(ctx)
+        s = self.scene.settings
+        self.emitter = PhotonEmitter(ctx.lights, self.center, self.radius)
+        self.photon_tracer = PhotonTracer(ctx, self.emitter, s.max_depth)
+        self.lambert_albedo = plain_lambert_albedo(self.scene.materials)
+        self.flat_normal = flat_normals(self.scene.mesh)
+        self.stores = diffuse_materials(self.scene.materials)
+        self.emissive_material = self.scene.materials.emission.mean(axis=1) > 0
+
+    def install(self, version, arrays):
+        split = lambda prefix: {k.split(".", 1)[1]: v for k, v in arrays.items() if k.startswith(prefix + ".")}  # noqa: E731
+        if "global.position" in arrays:
+            s = self.scene.settings
+            self.global_map = PhotonMap.from_packed(split("global"), max(s.photons, 1))
+            self.caustic_map = PhotonMap.from_packed(split("caustic"), max(s.caustic_photons, 1))
+        if "radiance.position" in arrays:
+            self.radiance_photons = RadiancePhotons.from_packed(split("radiance"))
+
+    def run(self, stage, item, stop=None):
+        s = self.scene.settings
+        if stage.name == "photons":
+            caustic = item >= self.n_global_items
+            first = (item - self.n_global_items if caustic else item) * PHOTON_BATCH
+            total = s.caustic_photons if caustic else s.photons
+            paths = np.arange(first, min(first + PHOTON_BATCH, total))
+            if self.emitter.empty or len(paths) == 0:
+                return _no_photons()
+            # One Sobol sequence per stream: photon j is sample j (stratified emission).
+            sampler = rng.Sampler(s.seed, np.full(len(paths), int(caustic)), paths, s.pattern, domain=rng.PHOTONS)
+            return self.photon_tracer.trace(sampler, caustic, stop)
+        if stage.name == "radiance":
+            rows = np.arange(item * RADIANCE_BATCH, min((item + 1) * RADIANCE_BATCH,
+                                                        -(-len(self.global_map) // RADIANCE_STRIDE)))
+            rows = rows * RADIANCE_STRIDE
+            position = take(self.global_map.position, rows)
+            normal = self.global_map.normal(rows)
+            E, _ = self.global_map.irradiance(position, normal, s.photon_k, self.r_global, min_count=MIN_COUNT)
+            return {"position": position, "normal": normal, "E": E}
+        layout = self.layout
+        k = layout.paths(stage, item)
+        j = k % layout.n_pixels
+        sampler = rng.Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
+        return self._render(sampler, layout.pixel[j], k // layout.n_pixels, layout.px[j], layout.py[j], stop)
+
+    # --- the camera pass --------------------------------------------------------------------
+    def _render(self, sampler, pixel, sample, px, py, stop):
+        scene, s, accel, lights = self.scene, self.scene.settings, self.ctx.accel, self.ctx.lights
+        o64, d, tmax = camera_mod.generate_rays(scene.camera, s, px, py, sampler.get(0, None, 2))
+        n = len(px)
+        L = np.zeros((3, n))
+        idx = np.arange(n)
+        o32 = o64.astype(np.float32)
+        beta = np.ones((n, 3))
+        skip = np.full(n, -1, np.int64)
+        mesh = scene.mesh
+        for depth in range(s.max_depth + 1):
+            if stop is not None and stop.is_set():
+                raise Cancelled()
+            if len(idx) == 0:
+                break
+            hit = accel.intersect(o32, d, tmax, skip)
+            camera_ray = np.full(len(idx), depth == 0)
+            no_weight = np.zeros(len(idx))
+            everyone = np.zeros(len(idx), bool)  # use_mis False: emission with weight 1
+            if len(lights.hittable):
+                _accumulate(L, idx, beta * lights.emission_along(o64, d, hit.t, no_weight, everyone, camera_ray))
+            missed = hit.prim < 0
+            if missed.any() and lights.sees_escaped:
+                r = np.flatnonzero(missed)
+                _accumulate(L, idx[r], take(beta, r) * lights.escaped(take(d, r), no_weight[r], everyone[r],
+                                                                      camera_ray[r]))
+            keep = np.flatnonzero(~missed)
+            if len(keep) == 0:
+                break
+            idx, prim = idx[keep], hit.prim[keep]
+            beta, p, d, bary, ng = (take(a, keep) for a in (beta, hit.p, d, hit.b, hit.ng))
+            mat = mesh.material[prim]
+            emits = self.emissive_material[mat]
+            if emits.any():
+                r = np.flatnonzero(emits)
+                _accumulate(L, idx[r], take(beta, r) * take(scene.materials.emission, mat[r]))
+            wo = -d
+            ng_f, ns = shading_frame(mesh, self.flat_normal, prim, bary, ng, wo)
+            bsdf = make_closure(scene, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary)
+            ns = bsdf.ns
+            diffuse = self.stores[mat] & bsdf.has_smooth
+            x = np.flatnonzero(diffuse)
+            if len(x):
+                self._shade_diffuse(L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth)
+            spec = np.flatnonzero(~diffuse)
+            if depth == s.max_depth or len(spec) == 0:
+                break
+            # Specular vertices: follow the BSDF (no light sampling: the camera path only
+            # looks for its first diffuse point).
+            u = sampler.get(1 + _GROUPS * depth + _BSDF, idx[spec], 3)
+            bs = bsdf.sample(*_full(u, spec, len(idx)))
+            ok = spec[bs.valid[spec]]
+            beta = take(beta, ok) * take(bs.weight, ok)
+            live = np.flatnonzero(max3(beta) > 0)
+            ok = ok[live]
+            beta = take(beta, live)
+            idx, d = idx[ok], take(bs.wi, ok)
+            o64 = take(p, ok)
+            o32 = offset_origin(o64, towards(take(ng_f, ok), d))
+            skip, tmax = prim[ok], None
+        return np.ascontiguousarray(L.T)
+
+    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth):
+        """Direct light, caustics and final gathering at the diffuse points x (rows of idx)."""
+        s, lights = self.scene.settings, self.ctx.lights
+        at = gatherer(x, len(idx))
+        rows, bx = idx[x], at(beta)
+        G = max(s.gather_rays, 0)
+        view = s.photon_view
+        f_at = lambda pts: (lambda r, wi: bsdf.eval(wi, pts[r])[0])  # noqa: E731
+        if view == "global":
+            Lg, _ = self.global_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_global, min_count=MIN_COUNT)
+            _accumulate(L, rows, bx * Lg)
+            return
+        if len(self.caustic_map):
+            Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_caustic, min_count=MIN_COUNT)
+            _accumulate(L, rows, bx * Lc)
+        if view == "caustic":
+            return
+        base = 1 + _GROUPS * depth
+        # Direct light: one light sample, MIS against the G BSDF-sampled gather rays.
+        if not lights.empty:
+            u_light = sampler.get(base + _LIGHT, rows, 3)
+            ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2])
+            f, pdf_b = bsdf.eval(ls.wi, x)
+            cos_i = np.abs(dot(ls.wi, at(ns)))
+            w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + G * pdf_b, 1e-300))
+            contrib = bx * f * scale(ls.Le, np.divide(cos_i * w, ls.pdf, out=np.zeros(len(x)), where=ls.valid))
+            test = np.flatnonzero(max3(contrib) > 0)
+            if len(test):
+                o_shadow = offset_origin(take(at(p), test), towards(take(at(ng_f), test), take(ls.wi, test)))
+                blocked = self.ctx.accel.occluded(o_shadow, take(ls.target, test), prim[x[test]], ls.target_prim[test])
+                lit = test[~blocked]
+                _accumulate(L, rows[lit], take(contrib, lit))
+        if G == 0:
+            return
+        # Final gathering: G rays per point, stratified over the pixel's camera samples.
+        rep = np.repeat(np.arange(len(x)), G)
+        gsampler = rng.Sampler(s.seed, pixel[x][rep], sample[x][rep] * G + np.tile(np.arange(G), len(x)), s.pattern,
+                               domain=rng.GATHER)
+        Lg = self._gather(gsampler, x[rep], p, ng_f, prim, bsdf, G)
+        _accumulate(L, rows[rep], take(bx, rep) * Lg / G)
+
+    def _gather(self, sampler, pts, p, ng_f, prim, bsdf, G):
+        """Radiance (K,3) x BSDF weight of one gather ray from each diffuse point pts (K,)."""
+        scene, s, accel, lights = self.scene, self.scene.settings, self.ctx.accel, self.ctx.lights
+        u = sampler.get(0, None, 3)
+        bs = _sample_rows(bsdf, pts, u)
+        K = len(pts)
+        out = np.zeros((3, K))
+        g = np.flatnonzero(bs.valid)
+        beta = take(bs.weight, g)
+        d = take(bs.wi, g)
+        pdf_mis = G * bs.pdf[g]
+        delta = bs.delta[g]
+        o64 = take(p, pts[g])
+        o32 = offset_origin(o64, towards(take(ng_f, pts[g]), d))
+        skip = prim[pts[g]]
+        mesh = scene.mesh
+        for depth in range(s.max_depth):
+            if len(g) == 0:
+                break
+            hit = accel.intersect(o32, d, None, skip)
+            first = depth == 0
+            if first:  # the gather ray is also the BSDF strategy of direct light (MIS)
+                not_camera = np.zeros(len(g), bool)
+                if len(lights.hittable):
+                    _accumulate(out, g, beta * lights.emission_along(o64, d, hit.t, pdf_mis, ~delta, not_camera))
+                missed = hit.prim < 0
+                if missed.any() and lights.sees_escaped:
+                    r = np.flatnonzero(missed)
+                    _accumulate(out, g[r], take(beta, r) * lights.escaped(take(d, r), pdf_mis[r], ~delta[r], not_camera[r]))
+            keep = np.flatnonzero(hit.prim >= 0)
+            g, hp, hprim = g[keep], take(hit.p, keep), hit.prim[keep]
+            beta, d, bary, ng = take(beta, keep), take(d, keep), take(hit.b, keep), take(hit.ng, keep)
+            mat = mesh.material[hprim]
+            if first:
+                emits = self.emissive_material[mat]
+                if emits.any():
+                    r = np.flatnonzero(emits)
+                    cos_l = np.abs(dot(take(d, r), take(ng, r)))
+                    pdf_light = lights.pdf_triangle_hit(hprim[r], take(o64, keep[r]), hit.t[keep[r]], cos_l)
+                    pm = pdf_mis[keep[r]]
+                    w = np.where(delta[keep[r]], 1.0, pm / np.maximum(pm + pdf_light, 1e-300))
+                    _accumulate(out, g[r], take(beta, r) * scale(take(scene.materials.emission, mat[r]), w))
+            wo = -d
+            ng_y, ns_y = shading_frame(mesh, self.flat_normal, hprim, bary, ng, wo)
+            stores = self.stores[mat]
+            y = np.flatnonzero(stores)
+            if len(y):
+                if self.radiance_photons is not None:
+                    E = self.radiance_photons.lookup(take(hp, y), take(ng_y, y), self.r_global)
+                    bsdf_y = make_closure(scene, self.lambert_albedo, mat[y], take(ns_y, y), take(ng_y, y), take(wo, y),
+                                          hprim[y], take(bary, y))
+                    Ly = scale(E * bsdf_y.reflectance, 1.0 / np.pi)
+                else:
+                    bsdf_y = make_closure(scene, self.lambert_albedo, mat[y], take(ns_y, y), take(ng_y, y), take(wo, y),
+                                          hprim[y], take(bary, y))
+                    Ly, _ = self.global_map.radiance(take(hp, y), take(ng_y, y),
+                                                     lambda r, wi: bsdf_y.eval(wi, r)[0],
+                                                     s.photon_k, self.r_global, min_count=MIN_COUNT)
+                _accumulate(out, g[y], take(beta, y) * Ly)
+            # Specular gather hits: follow them (no emission: that light is the caustic map's).
+            c = np.flatnonzero(~stores)
+            if len(c) == 0:
+                break
+            bsdf_c = make_closure(scene, self.lambert_albedo, mat[c], take(ns_y, c), take(ng_y, c), take(wo, c),
+                                  hprim[c], take(bary, c))
+            u = sampler.get(1 + depth, g[c], 3)
+            bc = bsdf_c.sample(u[:, :2], u[:, 2])
+            ok = np.flatnonzero(bc.valid)
+            g = g[c[ok]]
+            beta = take(beta, c[ok]) * take(bc.weight, ok)
+            d = take(bc.wi, ok)
+            o32 = offset_origin(take(hp, c[ok]), towards(take(ng_y, c[ok]), d))
+            skip = hprim[c[ok]]
+        return np.ascontiguousarray(out.T)
+
+
+def _sample_rows(bsdf, pts, u):
+    """BSDF samples at points pts (K,) (repeats allowed) of a closure built for N points."""
+    from ...bsdf.closure import BSDFSample
+
+    n = bsdf.n if hasattr(bsdf, "n") else len(bsdf.ns)
+    # Sample all repeats by sampling the closure once per repeat round: rows of the same point
+    # within one round are distinct, so each round is one call over unique points.
+    order = np.argsort(pts, kind="stable")
+    rank = np.empty(len(pts), np.int64)
+    first = np.searchsorted(pts[order], pts[order])
+    rank[order] = np.arange(len(pts)) - first
+    K = len(pts)
+    wi, weight, pdf = np.zeros((K, 3)), np.zeros((K, 3)), np.zeros(K)
+    delta, valid = np.zeros(K, bool), np.zeros(K, bool)
+    for r in range(int(rank.max()) + 1 if K else 0):
+        sel = np.flatnonzero(rank == r)
+        uu = np.zeros((n, 3))
+        uu[pts[sel]] = u[sel]
+        bs = bsdf.sample(uu[:, :2], uu[:, 2])
+        src = pts[sel]
+        wi[sel], weight[sel], pdf[sel] = bs.wi[src], bs.weight[src], bs.pdf[src]
+        delta[sel], valid[sel] = bs.delta[src], bs.valid[src]
+    return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=delta, valid=valid)
+
+
+def _full(u, rows, n):
+    """u (K,3) for rows (K,) of n points as full (n,2) and (n,) arrays (zeros elsewhere)."""
+    uu = np.zeros((n, 3))
+    uu[rows] = u
+    return uu[:, :2], uu[:, 2]
+
+
+def _no_photons() -> dict:
+    z3 = np.zeros((0, 3), np.float32)
+    return {"position": z3, "wi": z3, "normal": z3, "flux": z3, "caustic": np.zeros(0, bool),
+            "bounces": np.array([0])}

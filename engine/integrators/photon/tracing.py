@@ -1,0 +1,123 @@
+"""Photon tracing (seed 001, Jensen 2001 ch. 5): wavefront, one Embree call per bounce.
+
+Photons leave the lights with flux chosen so that E[flux] is the lights' power
+(engine/lights/emission.py). At every hit the surface's BSDF is sampled in its adjoint form
+(the same closure as camera paths; refraction does not scale flux by 1/eta^2), and Russian
+roulette keeps max(flux) constant: a photon survives with q = min(1, max(beta f cos / pdf) /
+max(beta)) and is divided by q (pbrt-v4 SPPM), so for grey surfaces every photon carries the
+same flux and the survival probability is the reflectance, as the seed asks.
+
+Photons are stored at every hit on a *diffuse* surface (`diffuse_materials`: a diffuse or
+moderately rough lobe), the first hit from the light included, absorbed ones included.
+A photon whose every earlier bounce was specular (delta, or on a surface too sharp to store),
+with at least one, is also a caustic photon (L S+ D). Paths whose incoming direction is on
+different sides of the geometric and shading normals are dropped, so light does not leak
+through smooth-shaded geometry (Veach 1997 p. 158; Mitsuba 0.6 particleproc).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ...accel import offset_origin
+from ...bsdf.closure import make_closure, plain_lambert_albedo
+from ...scene import LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_PHONG, Materials
+from ...vec import dot, max3, scale, take
+from ..surface import flat_normals, shading_frame, towards
+
+# Smallest GGX roughness (Blender's, alpha = roughness^2) whose lobe stores photons: sharper
+# lobes are followed as specular (their radiance estimate from photons would be too blurred).
+MIN_STORE_ROUGHNESS = 0.3
+
+# Random-number groups of a photon path: 0 the origin (lanes 0-1) and the light (lane 2),
+# 1 the direction (0-1), then per bounce one group: direction (0-1), lobe (2), roulette (3).
+EMIT_POS, EMIT_DIR, FIRST_BOUNCE = 0, 1, 2
+
+
+def diffuse_materials(m: Materials) -> np.ndarray:
+    """(M,) bool: materials with a lobe that stores photons (diffuse, Phong with a diffuse
+    part, microfacet or rough glass with roughness >= MIN_STORE_ROUGHNESS)."""
+    k = m.lobe_kind
+    stores = (k == LOBE_DIFFUSE) | ((k == LOBE_PHONG) & (m.lobe_color.max(axis=1) > 0))
+    stores |= ((k == LOBE_MICROFACET) | (k == LOBE_DIELECTRIC)) & (m.lobe_roughness >= MIN_STORE_ROUGHNESS)
+    stores &= m.lobe_weight.max(axis=1) > 0
+    return np.bincount(m.lobe_material[stores], minlength=len(m.kind)) > 0
+
+
+class PhotonTracer:
+    def __init__(self, ctx, emitter, max_depth: int):
+        self.scene, self.accel, self.emitter = ctx.scene, ctx.accel, emitter
+        self.lambert_albedo = plain_lambert_albedo(ctx.scene.materials)
+        self.flat_normal = flat_normals(ctx.scene.mesh)
+        self.stores = diffuse_materials(ctx.scene.materials)
+        self.max_depth = max_depth
+
+    def trace(self, sampler, caustic_only: bool, stop=None) -> dict:
+        """Trace one photon path per row of `sampler` (domain PHOTONS).
+
+        Returns position, wi (toward where the photon came from), normal (the geometric normal
+        on the arrival side), flux (M,3) float32 and caustic (M,) bool of the stored photons,
+        and `bounces` (the photon-surface interactions traced, for statistics). caustic_only:
+        only caustic photons are stored and paths end at their first diffuse hit."""
+        from ...errors import Cancelled
+
+        n = len(sampler.key)
+        u0 = sampler.get(EMIT_POS, None, 3)
+        em = self.emitter.sample(u0[:, 2], u0[:, :2], sampler.get(EMIT_DIR, None, 2))
+        live = np.flatnonzero(em.valid)
+        idx = live
+        o32 = take(em.o, live).astype(np.float32)
+        d, beta, skip = take(em.d, live), take(em.flux, live), em.prim[live]
+        specular = np.ones(len(live), bool)  # every bounce so far specular (none yet)
+        out = {key: [] for key in ("position", "wi", "normal", "flux", "caustic")}
+        mesh, bounces = self.scene.mesh, 0
+        for depth in range(self.max_depth + 1):
+            if stop is not None and stop.is_set():
+                raise Cancelled()
+            if len(idx) == 0:
+                break
+            hit = self.accel.intersect(o32, d, None, skip)
+            keep = np.flatnonzero(hit.prim >= 0)
+            if len(keep) == 0:
+                break
+            idx, prim, specular = idx[keep], hit.prim[keep], specular[keep]
+            beta, p, d, bary, ng = (take(a, keep) for a in (beta, hit.p, d, hit.b, hit.ng))
+            bounces += len(idx)
+            wo = -d  # toward where the photon came from
+            ng_f, ns = shading_frame(mesh, self.flat_normal, prim, bary, ng, wo)
+            mat = mesh.material[prim]
+            diffuse = self.stores[mat]
+            caustic = specular & (depth > 0) & diffuse
+            store = caustic if caustic_only else diffuse
+            if store.any():
+                r = np.flatnonzero(store)
+                out["position"].append(take(p, r).astype(np.float32))
+                out["wi"].append(take(wo, r).astype(np.float32))
+                out["normal"].append(take(ng_f, r).astype(np.float32))
+                out["flux"].append(take(beta, r).astype(np.float32))
+                out["caustic"].append(caustic[r])
+            go = ~diffuse if caustic_only else np.ones(len(idx), bool)
+            go &= dot(wo, ns) > 0  # shading and geometric normals disagree: a leak, drop
+            if depth == self.max_depth or not go.any():
+                break
+            g = np.flatnonzero(go)
+            if len(g) < len(idx):
+                idx, prim, specular, mat, diffuse = idx[g], prim[g], specular[g], mat[g], diffuse[g]
+                beta, p, wo, bary, ng_f, ns = (take(a, g) for a in (beta, p, wo, bary, ng_f, ns))
+            bsdf = make_closure(self.scene, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary)
+            u = sampler.get(FIRST_BOUNCE + depth, idx, 4)
+            bs = bsdf.sample(u[:, :2], u[:, 2])
+            w = bs.weight if bs.refraction_eta2 is None else scale(bs.weight, bs.refraction_eta2)
+            beta_new = beta * w
+            q = np.minimum(1.0, np.divide(max3(beta_new), max3(beta), out=np.zeros(len(idx)), where=max3(beta) > 0))
+            survive = bs.valid & (u[:, 3] < q) & (max3(beta_new) > 0)
+            keep = np.flatnonzero(survive)
+            idx, d = idx[keep], take(bs.wi, keep)
+            beta = scale(take(beta_new, keep), 1.0 / q[keep])
+            specular = specular[keep] & ~diffuse[keep]
+            o32 = offset_origin(take(p, keep), towards(take(ng_f, keep), d))
+            skip = prim[keep]
+        arrays = {key: (np.concatenate(v) if v else np.zeros((0, 3), np.float32)) for key, v in out.items()
+                  if key != "caustic"}
+        arrays["caustic"] = np.concatenate(out["caustic"]) if out["caustic"] else np.zeros(0, bool)
+        arrays["bounces"] = np.array([bounces])
+        return arrays
