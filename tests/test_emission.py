@@ -451,12 +451,12 @@ def emitted_radiance_cos(ls, e):
     return out
 
 
-@pytest.mark.parametrize("name", list(SCENES))
+@pytest.mark.parametrize("name", list(SCENES) + ["mixed"])
 def test_flux_is_le_cos_over_the_pdfs(name):
     """flux = Le |cos| / (P(light) pdf_pos pdf_dir) photon by photon, with Le and cos from the
     light's conventions and the pdfs from PhotonEmitter.pdf; the flux of a grey uniform emitter is
     the same for every photon (= total_power)."""
-    ls = SCENES[name]()
+    ls = mixed_scene() if name == "mixed" else SCENES[name]()
     em = emitter(ls)
     e = shoot(em, 20_000, 30)
     assert e.valid.mean() > 0.999
@@ -464,7 +464,7 @@ def test_flux_is_le_cos_over_the_pdfs(name):
     expect = emitted_radiance_cos(ls, e) / (em.pmf(e.light) * pdf_pos * pdf_dir)[:, None]
     v = e.valid
     np.testing.assert_allclose(e.flux[v], expect[v], rtol=1e-9, atol=0)
-    if name not in ("environment", "triangles"):  # one grey-or-coloured emitter of uniform Le
+    if name not in ("environment", "triangles", "mixed"):  # one emitter of uniform Le
         np.testing.assert_allclose(e.flux[v], np.broadcast_to(em.total_power, e.flux[v].shape), rtol=1e-9)
 
 

@@ -62,7 +62,7 @@ import numpy as np
 
 from .. import sampling
 from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN
-from ..vec import dot, max3, scale, take
+from ..vec import dot, scale, take
 from . import environment, shapes
 from .light_set import LightSet, avg
 
@@ -153,6 +153,31 @@ def _direction_about(mu, u_phi, axis):
     return sampling.to_world(local, t, b, axis)
 
 
+def _one_or_all(light):
+    """light[0] (an int) when every entry is the same emitter, else light (N,): gathers of
+    per-emitter rows then broadcast one row instead of copying it N times."""
+    first = int(light[0])
+    return first if bool(np.all(light == first)) else light
+
+
+def _affine(base, *terms):
+    """base + sum of s * v over terms (s, v), (N,3), column by column (see vec.py);
+    base and each v (3,) or (N,3), each s (N,) (at least one s is (N,))."""
+    n = max(np.size(s) for s, _ in terms)
+    out = np.empty((n, 3))
+    for k in range(3):
+        col = base[..., k]
+        for s, v in terms:
+            col = col + s * v[..., k]
+        out[:, k] = col
+    return out
+
+
+def _colour(c, s):
+    """c * s[:, None] (N,3) for a colour or vector c (3,) or (N,3) and s (N,)."""
+    return np.multiply.outer(s, c) if np.ndim(c) == 1 else scale(c, s)
+
+
 # ----------------------------------------------------------------------------------------------
 
 class PhotonEmitter:
@@ -229,101 +254,118 @@ class PhotonEmitter:
         u_pos = np.asarray(u_pos, np.float64)
         u_dir = np.asarray(u_dir, np.float64)
         n = len(u_select)
-        o = np.zeros((n, 3))
-        d = np.zeros((n, 3))
-        d[:, 2] = 1.0
-        flux = np.zeros((n, 3))
-        prim = np.full(n, -1, np.int64)
-        if self.empty:
-            return PhotonEmission(o, d, flux, np.zeros(n, np.int64), prim, np.zeros(n, bool))
+        if self.empty or n == 0:
+            d = np.zeros((n, 3))
+            d[:, 2] = 1.0
+            return PhotonEmission(np.zeros((n, 3)), d, np.zeros((n, 3)), np.zeros(n, np.int64),
+                                  np.full(n, -1, np.int64), np.zeros(n, bool))
         light, pmf, u_side = self.select.sample_discrete(u_select)
-        g = self.group[light]
-        for code in self.groups_present:
-            rows = np.flatnonzero(g == code) if len(self.groups_present) > 1 else np.arange(n)
-            if not len(rows):
-                continue
-            o_r, d_r, f_r, p_r = self._sample_group(code, light[rows], u_pos[rows], u_dir[rows], u_side[rows])
-            o[rows], d[rows], flux[rows] = o_r, d_r, f_r
-            if p_r is not None:
-                prim[rows] = p_r
-        flux = scale(flux, np.divide(1.0, pmf, out=np.zeros(n), where=pmf > 0))
-        valid = (pmf > 0) & np.isfinite(max3(np.abs(flux))) & (max3(np.abs(flux)) > 0)
-        flux[~valid] = 0.0
+        prim = np.full(n, -1, np.int64)
+        if len(self.groups_present) == 1:  # one kind of emitter (the common case): no scatter
+            o, d, flux, p = self._sample_group(self.groups_present[0], light, u_pos, u_dir, u_side)
+            if p is not None:
+                prim = p
+        else:
+            o, d, flux = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+            g = self.group[light]
+            for code in self.groups_present:
+                rows = np.flatnonzero(g == code)
+                if not len(rows):
+                    continue
+                o[rows], d[rows], flux[rows], p = self._sample_group(code, light[rows], u_pos[rows], u_dir[rows],
+                                                                     u_side[rows])
+                if p is not None:
+                    prim[rows] = p
+        inv_pmf = np.divide(1.0, pmf, out=np.zeros(n), where=pmf > 0)
+        for k in range(3):
+            flux[:, k] *= inv_pmf
+        valid = ((flux[:, 0] != 0) | (flux[:, 1] != 0) | (flux[:, 2] != 0)) \
+            & np.isfinite(flux[:, 0] + flux[:, 1] + flux[:, 2])
+        if not valid.all():
+            flux[~valid] = 0.0
         return PhotonEmission(o, d, flux, light, prim, valid)
 
     def _sample_group(self, code, light, u_pos, u_dir, u_side):
-        """origin, direction, Le |cos| / (pdf_pos pdf_dir) (RGB, 0 where invalid), prim or None."""
+        """Photons of emitters `light` (N,), all of group `code`: origin (N,3), direction (N,3),
+        Le |cos| / (pdf_pos pdf_dir) (N,3) (0 where invalid), prim (N,) or None."""
         ls, an = self.lights, self.lights.lights
+        n = len(light)
+        i = _one_or_all(light)  # an int when one emitter makes all of them: its rows broadcast
         if code in (LIGHT_RECT, LIGHT_DISK):
-            frame = take(an.frame, light)
-            hx, hy = an.size[light, 0], an.size[light, 1]
+            fx, fy, fz = (take(an.frame[:, k], i) for k in range(3))
+            hx, hy = an.size[i, 0], an.size[i, 1]
             if code == LIGHT_RECT:
                 xy = sampling.sample_uniform_rectangle(u_pos, hx, hy)
             else:
                 xy = sampling.sample_concentric_disk(u_pos)
                 xy[:, 0] *= hx
                 xy[:, 1] *= hy
-            o = take(an.position, light) + scale(frame[:, 0], xy[:, 0]) + scale(frame[:, 1], xy[:, 1])
+            o = _affine(take(an.position, i), (xy[:, 0], fx), (xy[:, 1], fy))
             local = sampling.sample_cosine_hemisphere(u_dir)
-            d = sampling.to_world(local, frame[:, 0], frame[:, 1], -frame[:, 2])
-            a = shapes.area(an)[light]
+            d = sampling.to_world(local, fx, fy, -fz)
+            a = shapes.area(an)[i]
             ok = (local[:, 2] > 0) & (a > 0)
-            return o, d, scale(take(an.Le, light), np.where(ok, np.pi * a, 0.0)), None
+            return o, d, _colour(take(an.Le, i), np.where(ok, np.pi * a, 0.0)), None
         if code == TRIANGLE:
-            t = light - ls.n_analytic
+            t = i - ls.n_analytic
             b = sampling.sample_uniform_triangle(u_pos)
-            o = take(ls.tri_v0, t) + scale(take(ls.tri_e1, t), b[:, 1]) + scale(take(ls.tri_e2, t), b[:, 2])
-            n = scale(take(ls.tri_ng, t), np.where(u_side < 0.5, 1.0, -1.0))
+            o = _affine(take(ls.tri_v0, t), (b[:, 1], take(ls.tri_e1, t)), (b[:, 2], take(ls.tri_e2, t)))
+            nrm = _colour(take(ls.tri_ng, t), np.where(u_side < 0.5, 1.0, -1.0))  # two-sided: either face
             local = sampling.sample_cosine_hemisphere(u_dir)
-            tb = sampling.frame_from_z(n)
-            d = sampling.to_world(local, tb[0], tb[1], n)
+            tb = sampling.frame_from_z(nrm)
+            d = sampling.to_world(local, tb[0], tb[1], nrm)
             a = ls.tri_area[t]
-            return o, d, scale(take(ls.tri_Le, t), np.where(local[:, 2] > 0, 2.0 * np.pi * a, 0.0)), ls.tri_prim[t]
+            flux = _colour(take(ls.tri_Le, t), np.where(local[:, 2] > 0, 2.0 * np.pi * a, 0.0))
+            return o, d, flux, np.broadcast_to(ls.tri_prim[t], (n,)).copy()
         if code in (LIGHT_POINT, LIGHT_SPOT):
-            c = take(an.position, light)
+            c = take(an.position, i)
             if code == LIGHT_POINT:
                 d = sampling.sample_uniform_sphere(u_dir)
-                att_over_pdf = np.full(len(light), 4.0 * np.pi)
+                att_over_pdf = np.full(n, 4.0 * np.pi)
             else:
-                axis = -take(an.frame[:, 2], light)
-                mu = sample_spot_cos(u_dir[:, 0], an.spot_cos_half[light], an.spot_smooth[light])
-                d = _direction_about(mu, u_dir[:, 1], axis)
-                pdf_dir = self._pdf_spot(light, d)
-                att = shapes.spot_attenuation(an, light, d)
+                axis = -take(an.frame[:, 2], i)
+                mu = sample_spot_cos(u_dir[:, 0], np.broadcast_to(an.spot_cos_half[i], (n,)),
+                                     np.broadcast_to(an.spot_smooth[i], (n,)))
+                d = _direction_about(mu, u_dir[:, 1], np.broadcast_to(axis, (n, 3)))
+                pdf_dir = self._pdf_spot(i, d)
+                att = shapes.spot_attenuation(an, i, d)
                 att_over_pdf = np.divide(att, pdf_dir, out=np.zeros_like(att), where=pdf_dir > 0)
-            r = an.radius[light]
-            o = c
+            r = an.radius[i]
             if np.any(r > 0):
                 t, b = sampling.frame_from_z(d)
                 xy = sampling.sample_concentric_disk(u_pos)
                 # sphere: lift the disk point onto the hemisphere facing d (projected-area sampling)
-                lift = np.where(an.soft[light], 0.0, r * np.sqrt(np.maximum(0.0, 1.0 - xy[:, 0]**2 - xy[:, 1]**2)))
-                o = c + scale(t, r * xy[:, 0]) + scale(b, r * xy[:, 1]) + scale(d, lift)
-            intensity = scale(take(an.Le, light), np.where(r > 0, np.pi * r * r, 1.0) * att_over_pdf)
+                lift = np.where(an.soft[i], 0.0, r * np.sqrt(np.maximum(0.0, 1.0 - xy[:, 0]**2 - xy[:, 1]**2)))
+                o = _affine(c, (r * xy[:, 0], t), (r * xy[:, 1], b), (lift, d))
+            else:
+                o = np.empty((n, 3))
+                o[:] = c
+            intensity = _colour(take(an.Le, i), np.where(r > 0, np.pi * r * r, 1.0) * att_over_pdf)
             return o, d, intensity, None
         # Parallel beams: wi towards the emitter, origin on the disk of radius R behind the scene.
+        beam = np.pi * self.radius**2
         if code == LIGHT_SUN:
-            z = take(an.frame[:, 2], light)
-            half = np.minimum(an.sun_half_angle[light], 0.5 * np.pi)
+            z = np.broadcast_to(take(an.frame[:, 2], i), (n, 3))
+            half = np.broadcast_to(np.minimum(an.sun_half_angle[i], 0.5 * np.pi), (n,))
             local, omc = sampling.sample_sphere_cone(u_dir, np.sin(half) ** 2)
             t, b = sampling.frame_from_z(z)
             wi = np.where((half > 0)[:, None], sampling.to_world(local, t, b, z), z)
             solid_angle = np.where(half > 0, 2.0 * np.pi * omc, 1.0)  # 1 / pdf_dir (delta: 1)
-            Le_over_pdf = scale(take(an.Le, light), solid_angle)
+            flux = _colour(take(an.Le, i), beam * solid_angle)
         elif code == ENVIRONMENT:
             wi, Le, pdf, _ = self.env.sample(u_dir)
-            Le_over_pdf = scale(Le, np.divide(1.0, pdf, out=np.zeros_like(pdf), where=pdf > 0))
+            flux = scale(Le, np.divide(beam, pdf, out=np.zeros_like(pdf), where=pdf > 0))
         else:  # WORLD
             wi = sampling.sample_uniform_sphere(u_dir)
-            Le_over_pdf = np.broadcast_to(self.world_L * (4.0 * np.pi), (len(light), 3))
-        return self._disk_origin(wi, u_pos), -wi, Le_over_pdf * (np.pi * self.radius**2), None
+            flux = _colour(self.world_L, np.full(n, beam * 4.0 * np.pi))
+        return self._disk_origin(wi, u_pos), -wi, flux, None
 
     def _disk_origin(self, wi, u_pos):
         """Points (N,3) uniform on the disk of radius R perpendicular to wi, centred R from the
         scene centre along wi (tangent to the bounding sphere, on the emitter's side)."""
         t, b = sampling.frame_from_z(wi)
         xy = sampling.sample_concentric_disk(u_pos) * self.radius
-        return self.center + scale(wi, self.radius) + scale(t, xy[:, 0]) + scale(b, xy[:, 1])
+        return _affine(self.center, (np.full(len(wi), self.radius), wi), (xy[:, 0], t), (xy[:, 1], b))
 
     def _pdf_spot(self, light, d):
         """Solid-angle pdf (N,) of spot directions d (N,3): att / (2 pi M)."""
