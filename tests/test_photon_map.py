@@ -73,13 +73,14 @@ def test_octahedral_round_trip():
 def test_pack_keeps_each_photon_together_in_morton_order():
     rng = np.random.default_rng(2)
     m = 10_000
-    p, wi, flux = rng.random((m, 3)) * [4, 1, 0.01] - 2, _hemisphere(rng, m), rng.random((m, 3))
+    p, wi, flux = rng.random((m, 3)) * [4, 1, 1] - 2, _hemisphere(rng, m), rng.random((m, 3))
     n = -_hemisphere(rng, m)
     order = pm.morton_order(p)
     assert np.array_equal(np.sort(order), np.arange(m))
-    # neighbours in memory are neighbours in space: mean step far below a random pair's
+    # neighbours in memory are neighbours in space: the mean step is ~0.064 of a random pair's
+    # (0.24 when sorted on a 64^2 grid in x, y only)
     step = np.linalg.norm(np.diff(p[order], axis=0), axis=1).mean()
-    assert step < 0.05 * np.linalg.norm(p[1:] - p[:-1], axis=1).mean()
+    assert step < 0.1 * np.linalg.norm(p[1:] - p[:-1], axis=1).mean()
     arrays = PhotonMap.pack(p, wi, flux, n)
     assert np.array_equal(arrays["position"], p[order].astype(np.float32))
     assert np.array_equal(arrays["flux"], flux[order].astype(np.float32))

@@ -286,7 +286,8 @@ class PhotonMap:
         return ok, wi
 
     def radiance(self, p, n, f, k: int, r_max, kernel: str = "uniform", min_count: int = 8):
-        """Reflected radiance L (N,3) [W m^-2 sr^-1] at points p (N,3) with unit normals n (N,3).
+        """Reflected radiance L (N,3) [W m^-2 sr^-1] at points p (N,3) with unit normals n (N,3)
+        on the side being shaded (photons count only if they arrived on that side).
 
         f(rows (K,), wi (K,3)) -> (K,3): the BSDF value f_r(wo, wi) [1/sr] at query points
         `rows` (indices into p) for photon directions wi (the caller binds wo); f=None gives the
