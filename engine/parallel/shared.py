@@ -2,9 +2,10 @@
 
 One POSIX shared-memory segment per published version holds all of its arrays, each at an
 aligned offset; a worker maps it and sees read-only views (a 10-million-photon map is
-shared, not pickled to every worker). The render process owns the segments and unlinks them
-on every exit path (`Publisher.release`, also run by the session's `finally`); workers only
-attach and close.
+shared, not pickled to every worker). Arrays are named: a later version of a name replaces
+the earlier one, other names stay current (photon maps, then radiance photons beside them).
+The render process owns the segments and unlinks them on every exit path
+(`Publisher.release`, also run by the session's `finally`); workers only attach and close.
 
 Python 3.11's resource tracker registers every SharedMemory it sees, also in processes that
 merely attach, and would unlink the segment when such a process exits (cpython issue 82300):
@@ -44,10 +45,20 @@ class Publisher:
 
     def __init__(self):
         self.segments: list[shared_memory.SharedMemory] = []
+        self.names: dict[str, shared_memory.SharedMemory] = {}  # array name -> latest segment
 
     def publish(self, arrays: dict[str, np.ndarray]):
+        """A new version of the named arrays (others published before stay current). A segment
+        is unlinked once every array in it has a newer version: workers that still map it
+        keep their mapping until they move on (POSIX), new ones never see it."""
         spec, size = _layout(arrays)
         shm = shared_memory.SharedMemory(create=True, size=size)
+        replaced = {self.names[name].name for name in arrays if name in self.names}
+        self.names.update(dict.fromkeys(arrays, shm))
+        live = {seg.name for seg in self.names.values()}
+        for seg in [seg for seg in self.segments if seg.name in replaced and seg.name not in live]:
+            self.segments.remove(seg)
+            _unlink(seg)
         self.segments.append(shm)
         for name, a in arrays.items():
             offset, shape, dtype = spec[name]
@@ -55,13 +66,17 @@ class Publisher:
         return shm.name, spec
 
     def release(self) -> None:
+        self.names.clear()
         while self.segments:
-            shm = self.segments.pop()
-            try:
-                shm.close()
-                shm.unlink()
-            except (FileNotFoundError, BufferError):  # pragma: no cover - already gone / views alive
-                pass
+            _unlink(self.segments.pop())
+
+
+def _unlink(shm) -> None:
+    try:
+        shm.close()
+        shm.unlink()
+    except (FileNotFoundError, BufferError):  # pragma: no cover - already gone / views alive
+        pass
 
 
 class Attachment:

@@ -63,7 +63,7 @@ def serve(fin, fout) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     tracer = Tracer(scene_from_plain(read_message(fin)))
     write_message(fout, ("ready",))
-    attached = None
+    current = {}  # array name -> the Attachment holding its latest version
     try:
         while True:
             msg = read_message(fin)
@@ -74,9 +74,10 @@ def serve(fin, fout) -> None:
                     _, version, handle = msg
                     new = Attachment(handle)
                     tracer.integrator.install(version, new.arrays)
-                    if attached is not None:
-                        attached.close()
-                    attached = new
+                    replaced = {current[name] for name in new.arrays if name in current}
+                    current.update(dict.fromkeys(new.arrays, new))
+                    for old in replaced - set(current.values()):
+                        old.close()  # every array it held has a newer version
                     continue
                 _, stage, item = msg
                 write_message(fout, ("done",) + tracer.run(Stage(**stage), item))
@@ -85,8 +86,8 @@ def serve(fin, fout) -> None:
 
                 write_message(fout, ("error", traceback.format_exc()))
     finally:
-        if attached is not None:
-            attached.close()
+        for attachment in set(current.values()):
+            attachment.close()
 
 
 def can_spawn() -> bool:

@@ -39,7 +39,7 @@ PHOTON_BATCH = 1 << 16  # photon paths per work item
 RADIANCE_BATCH = 1 << 15  # radiance photons per work item
 RADIANCE_STRIDE = 4  # every 4th global photon becomes a radiance photon
 GLOBAL_RADIUS, CAUSTIC_RADIUS = 0.05, 0.0125  # x scene radius: Mitsuba 0.6's defaults
-MIN_COUNT = 8  # fewer photons than this give no estimate
+MIN_COUNT = 1  # the seed zeroes estimates below a minimum count; measured below
 # Random-number groups of a camera path (rng.Sampler): 0 the pixel filter, then per vertex
 # light (0-1 point, 2 choice) and BSDF (0-1 direction, 2 lobe); gather rays use domain GATHER
 # with sample index = camera sample x G + ray, per bounce one BSDF group.
@@ -324,7 +324,7 @@ class PhotonIntegrator(Integrator):
                     E = self.radiance_photons.lookup(take(hp, y), take(ng_y, y), self.r_global)
                     bsdf_y = make_closure(scene, self.lambert_albedo, mat[y], take(ns_y, y), take(ng_y, y), take(wo, y),
                                           hprim[y], take(bary, y))
-                    Ly = scale(E * bsdf_y.reflectance, 1.0 / np.pi)
+                    Ly = E * bsdf_y.reflectance * (1.0 / np.pi)
                 else:
                     bsdf_y = make_closure(scene, self.lambert_albedo, mat[y], take(ns_y, y), take(ng_y, y), take(wo, y),
                                           hprim[y], take(bary, y))
