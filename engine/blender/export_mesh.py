@@ -238,7 +238,33 @@ class MeshCollector:
             lst = self._groups[group] = []
         lst.append(matrix_world)
 
-    def build(self, check=lambda: None, report=lambda msg: None) -> Mesh:
+    def bounds(self) -> np.ndarray:
+        """(2,3) float64 world bounding box (min, max) of every collected instance, from the
+        8 corners of each mesh's local box (for the scene's origin); empty (0,3) if none."""
+        lo, hi = [], []
+        for (data_key, _), matrices in self._groups.items():
+            proto = self._protos[data_key]
+            p = proto.positions[np.all(np.isfinite(proto.positions), axis=1)].astype(np.float64)
+            if len(p) == 0:
+                continue
+            a, b = p.min(axis=0), p.max(axis=0)
+            corners = np.array([[(a, b)[i][0], (a, b)[j][1], (a, b)[k][2]]
+                                for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+            M = np.array(matrices, np.float64).reshape(-1, 4, 4)
+            w = np.einsum("kij,cj->kci", M[:, :3, :3], corners) + M[:, None, :3, 3]
+            w = w.reshape(-1, 3)
+            w = w[np.all(np.isfinite(w), axis=1)]
+            if len(w):
+                lo.append(w.min(axis=0))
+                hi.append(w.max(axis=0))
+        if not lo:
+            return np.zeros((0, 3))
+        return np.array([np.min(lo, axis=0), np.max(hi, axis=0)])
+
+    def build(self, check=lambda: None, report=lambda msg: None, origin=None) -> Mesh:
+        """The world-space triangle soup; with `origin` (3,) the world is shifted so that it
+        becomes (0, 0, 0), in float64 before the float32 store (precision far from 0)."""
+        shift = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
         plan = []  # (proto, material lookup, matrices (k,4,4), det (k,))
         n_vert = n_tri = 0
         dropped = 0
@@ -292,7 +318,7 @@ class MeshCollector:
                 Mc, dc = M[s:s + chunk], det[s:s + chunk]
                 k = len(Mc)
                 R = Mc[:, :3, :3]
-                P = np.matmul(proto.positions[None], R.transpose(0, 2, 1)) + Mc[:, None, :3, 3]
+                P = np.matmul(proto.positions[None], R.transpose(0, 2, 1)) + (Mc[:, None, :3, 3] - shift)
                 vertices[v0:v0 + k * V] = P.reshape(-1, 3)
                 # Corner normals by the inverse transpose: row vector n -> n R^-1. For a
                 # rotation times uniform scale s, R^-1 = R^T / s^2: n R^T is unit already.
