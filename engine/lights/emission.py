@@ -37,11 +37,13 @@ next-event estimation gives:
   sun                 direction of travel -wi, wi uniform in the sun's cone (or the sun's axis
                       for angle 0), origin uniform on a disk of radius R (the scene's bounding
                       radius) perpendicular to wi, centred R from the scene centre towards the
-                      sun (pdf_pos 1/(pi R^2)). A disk per direction (not one perpendicular to
-                      the axis) covers the whole bounding sphere for every direction of the
-                      cone. Power pi R^2 Le 2 pi (1 - cos half) (angle 0: pi R^2 E); Cycles'
-                      E = pi sin^2(half) Le differs from 2 pi (1 - cos half) Le only as the
-                      cosine at the disk, which the per-direction disk does not have.
+                      sun (pdf_pos 1/(pi R^2)). One disk per direction rather than one
+                      perpendicular to the axis: every direction's beam covers the whole
+                      bounding sphere, and each direction carries radiance Le over pi R^2, so
+                      the power is pi R^2 Le 2 pi (1 - cos half) (angle 0: pi R^2 E). A receiver
+                      still gets Cycles' irradiance (integral of Le cos over the cone, pi sin^2
+                      (half) Le when it faces the sun); only the bookkeeping power differs from
+                      pi R^2 x that irradiance, by 2 / (1 + cos half) (1.0002 for a 2-degree sun).
   environment map     wi from the importance table (never the MIS-compensated one: that table
                       is zero where the map is below its mean, which only MIS can afford; an
                       uncompensated copy is built then), d = -wi, origin on the disk as the sun
@@ -49,6 +51,12 @@ next-event estimation gives:
   constant world      LightSet does not sample it (BSDF sampling covers it); photons need it as
                       light all the same: one extra emitter index (lights.count, `world_index`),
                       wi uniform on the sphere, origin on the disk; power 4 pi^2 R^2 L.
+
+Power accuracy: exact in closed form for every kind but the environment, whose power is
+pi R^2 EnvironmentMap.power_integral (float32 sums; for a mirror ball its rim pixels' estimated
+coverage; for a non-rigid mapping (a Mapping node with non-uniform scale) the integral in env
+space, not over world directions). The photons' mean flux is exact in all cases; only the
+reported power is approximate there.
 
 Emitters whose mean-RGB flux is <= 0 (black, or negative lights) are never chosen; `emitted`
 says which are. Sampling uses u_select for the emitter (its remainder chooses a triangle's
