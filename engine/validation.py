@@ -49,9 +49,11 @@ def validate(scene: Scene) -> None:
     check_memory(scene)
 
 
-# Negative lights (Cycles renders them as negative radiance) need the integrator to keep
-# negative contributions; until it does they are refused rather than silently dropped.
-NEGATIVE_LIGHTS = False
+# Integrators that render negative lights as Cycles does (negative radiance; the light set
+# already chooses lights by |power|). They need to keep negative contributions (the path
+# tracer drops emission and light samples that are not > 0); until one is listed here,
+# negative lights are refused for it rather than silently dropped.
+NEGATIVE_LIGHT_INTEGRATORS: frozenset = frozenset()
 
 
 def _names(names, limit=5) -> str:
@@ -74,8 +76,8 @@ def _used_material_names(scene: Scene, bad: np.ndarray) -> list:
 
 
 def check_light_values(scene: Scene) -> None:
-    """Refuse NaN/Inf light strengths and emission (they would make every pixel NaN) and,
-    while NEGATIVE_LIGHTS is off, negative ones."""
+    """Refuse NaN/Inf light strengths and emission (they would make every pixel NaN) and
+    negative ones for integrators not in NEGATIVE_LIGHT_INTEGRATORS."""
     Le, emission, world = scene.lights.Le, scene.materials.emission, scene.world
     problems = []
     bad = ~np.all(np.isfinite(Le), axis=-1)
@@ -88,7 +90,7 @@ def check_light_values(scene: Scene) -> None:
         problems.append("the world colour or strength is NaN or infinite")
     if problems:
         raise EmberError("Cannot render: " + "; ".join(problems) + ".")
-    if NEGATIVE_LIGHTS:
+    if scene.settings.integrator in NEGATIVE_LIGHT_INTEGRATORS:
         return
     neg = _light_names(scene, np.flatnonzero(np.any(Le < 0, axis=-1)))
     neg_m = _used_material_names(scene, np.any(emission < 0, axis=-1))
