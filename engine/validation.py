@@ -43,6 +43,7 @@ def validate(scene: Scene) -> None:
         problems.append(f"noise target must be >= 0 (got {s.noise_target})")
     if s.integrator not in INTEGRATORS:
         problems.append(f"unknown integrator {s.integrator!r} (use one of {', '.join(INTEGRATORS)})")
+    problems += _photon_problems(s)
     if problems:
         raise EmberError("Invalid render settings: " + "; ".join(problems))
     check_light_values(scene)
@@ -189,3 +190,19 @@ def has_light(scene: Scene) -> bool:
     return (len(scene.lights) > 0 or bool(np.any(scene.materials.emission != 0))
             or bool(np.max(np.abs(world.color)) > 0
                     and (getattr(world, "image", None) is None or np.max(np.abs(world.image)) > 0)))
+
+
+PHOTON_VIEWS = ("full", "global", "caustic")
+
+
+def _photon_problems(s) -> list[str]:
+    """The photon-mapping settings (checked whatever the integrator: they are saved with it)."""
+    problems = [f"{name.replace('_', ' ')} must be >= 0 (got {getattr(s, name)})"
+                for name in ("photons", "caustic_photons", "gather_rays") if getattr(s, name) < 0]
+    problems += [f"{name.replace('_', ' ')} must be >= 0 m (got {getattr(s, name)})"
+                 for name in ("global_radius", "caustic_radius") if not getattr(s, name) >= 0]
+    if s.photon_k < 2:
+        problems.append(f"photons per estimate must be at least 2 (got {s.photon_k})")
+    if s.photon_view not in PHOTON_VIEWS:
+        problems.append(f"unknown photon view {s.photon_view!r} (use one of {', '.join(PHOTON_VIEWS)})")
+    return problems

@@ -74,7 +74,31 @@ class EMBER_RENDER_PT_performance(EmberRenderPanel, bpy.types.Panel):
         layout.prop(context.scene.ember, "batch_size")
 
 
-classes = (EMBER_RENDER_PT_sampling, EMBER_RENDER_PT_light_paths, EMBER_RENDER_PT_performance)
+class EMBER_RENDER_PT_photons(EmberRenderPanel, bpy.types.Panel):
+    bl_label = "Photon Mapping"
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and context.scene.ember.integrator == 'PHOTON'
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.ember
+        col = layout.column()
+        col.prop(settings, "photons")
+        col.prop(settings, "caustic_photons")
+        col.prop(settings, "photon_k")
+        col.prop(settings, "global_radius")
+        col.prop(settings, "caustic_radius")
+        col.prop(settings, "gather_rays")
+        col.prop(settings, "radiance_photons")
+        col.prop(settings, "photon_view")
+
+
+classes = (EMBER_RENDER_PT_sampling, EMBER_RENDER_PT_photons, EMBER_RENDER_PT_light_paths,
+           EMBER_RENDER_PT_performance)
 
 # The COMPAT_ENGINES sets we added ENGINE to (by identity: mixins share one set object).
 _added_to: dict = {}

@@ -4,7 +4,7 @@ These are user-facing values only; engine/blender/export.py turns them into
 engine.scene.Settings.
 """
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 
 from ..engine.integrators import REGISTRY
 
@@ -15,6 +15,13 @@ INTEGRATOR_ITEMS = [(cls.name.upper(), cls.label, cls.description) for cls in RE
 PATTERN_ITEMS = [
     ('SOBOL', "Sobol-Burley", "Owen-scrambled Sobol sequence (as Cycles): lower noise per sample"),
     ('RANDOM', "Independent", "Independent random numbers per sample (for studies)"),
+]
+
+
+PHOTON_VIEW_ITEMS = [
+    ('FULL', "Full", "The rendered image"),
+    ('GLOBAL', "Global Map", "Debug: the global photon map's radiance estimate seen directly"),
+    ('CAUSTIC', "Caustic Map", "Debug: the caustic map's radiance estimate alone"),
 ]
 
 
@@ -61,6 +68,50 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
         name="Batch Size",
         description="Rays traced together in one wavefront; bigger is faster but uses more memory",
         default=131072, min=1024, soft_max=1 << 20,
+    )
+    # Photon mapping (defaults are engine.scene.Settings'; radii 0 = relative to the scene size).
+    photons: IntProperty(
+        name="Global Photons",
+        description="Photon paths emitted for the global map (indirect light read by final gathering)",
+        default=200_000, min=0, soft_max=10_000_000,
+    )
+    caustic_photons: IntProperty(
+        name="Caustic Photons",
+        description="Photon paths emitted for the caustic map (light focused by glass and mirrors "
+                    "onto diffuse surfaces); skipped when the scene has no specular surface",
+        default=1_000_000, min=0, soft_max=50_000_000,
+    )
+    photon_k: IntProperty(
+        name="Photons per Estimate",
+        description="Nearest photons in one radiance estimate (more: smoother, more blurred)",
+        default=50, min=2, soft_max=500,
+    )
+    global_radius: FloatProperty(
+        name="Global Radius",
+        description="Largest search radius in the global map (0 = 5 % of the scene's bounding radius)",
+        default=0.0, min=0.0, subtype='DISTANCE', unit='LENGTH',
+    )
+    caustic_radius: FloatProperty(
+        name="Caustic Radius",
+        description="Largest search radius in the caustic map (0 = 1.25 % of the scene's bounding radius)",
+        default=0.0, min=0.0, subtype='DISTANCE', unit='LENGTH',
+    )
+    gather_rays: IntProperty(
+        name="Gather Rays",
+        description="Final-gathering rays per camera sample at the first diffuse surface",
+        default=16, min=0, soft_max=256,
+    )
+    radiance_photons: BoolProperty(
+        name="Radiance Photons",
+        description="Precompute irradiance at every 4th photon so a gather ray needs one lookup "
+                    "(Christensen 1999): much faster, slightly more blurred",
+        default=True,
+    )
+    photon_view: EnumProperty(
+        name="View",
+        description="What the photon integrator shows",
+        items=PHOTON_VIEW_ITEMS,
+        default='FULL',
     )
 
 

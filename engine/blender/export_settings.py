@@ -19,7 +19,9 @@ from ..scene import FILTERS, Settings
 _DEFAULTS = Settings()
 
 # scene.ember field -> Settings field (same name); read with getattr so plain bpy works.
-_EMBER_FIELDS = ("samples", "max_depth", "seed", "time_limit", "noise_target", "batch_size")
+_EMBER_FIELDS = ("samples", "max_depth", "seed", "time_limit", "noise_target", "batch_size",
+                 "photons", "caustic_photons", "photon_k", "global_radius", "caustic_radius", "gather_rays",
+                 "radiance_photons")
 _INTEGRATOR_ENUM = {name.upper(): name for name in INTEGRATORS}  # UI enum id -> registry name
 
 
@@ -86,6 +88,8 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
         kw["integrator"] = _integrator_name(ember.integrator)
     if ember is not None and getattr(ember, "pattern", None) is not None:
         kw["pattern"] = str(ember.pattern).lower()
+    if ember is not None and getattr(ember, "photon_view", None) is not None:
+        kw["photon_view"] = str(ember.photon_view).lower()
 
     cycles = getattr(scene, "cycles", None)
     filt = getattr(cycles, "pixel_filter_type", None) if cycles is not None else None

@@ -1,0 +1,159 @@
+"""The photon-mapping integrator (engine/integrators/photon/): analytic scenes, flux
+bookkeeping, convergence as photons grow, light leaks, and independence from the workers.
+
+Photon mapping is biased (the k-nearest estimate blurs over a radius), so these tests check
+what a biased but consistent estimator must satisfy: conservation (stored flux = emitted
+power), exact answers where the density is uniform, error falling as photons grow, and the
+same image whatever the number of processes.
+"""
+import numpy as np
+import pytest
+
+from core_scenes import Lights, Materials, MAT_DIFFUSE, Scene, World, furnace_box, perspective, quads_mesh, \
+    settings, sphere_with_point_light
+from ember.engine import rng
+from ember.engine.integrators.base import Stage
+from ember.engine.session import RenderSession
+from ember.engine.tracer import Tracer
+
+
+def render(scene, **kw):
+    s = scene.replace(settings=scene.settings.replace(integrator="photon", **kw))
+    session = RenderSession(s)
+    stats = session.run()
+    return session.film.mean(), stats
+
+
+def trace_photons(scene, n, caustic=False, **kw):
+    """The stored photons of n photon paths (one work item's tracing, in this process)."""
+    tracer = Tracer(scene.replace(settings=scene.settings.replace(integrator="photon", **kw)))
+    sampler = rng.Sampler(1, np.zeros(n, np.int64), np.arange(n), "random", domain=rng.PHOTONS)
+    return tracer.integrator, tracer.integrator.photon_tracer.trace(sampler, caustic)
+
+
+def closed_box_with_point_light(albedo=0.5, intensity=10.0):
+    mesh = quads_mesh(_box((-1, -1, -1), (1, 1, 1)), [0] * 6)
+    mats = Materials.make([dict(kind=MAT_DIFFUSE, base_color=(albedo,) * 3)])
+    lights = Lights.make([dict(kind=0, position=(0.1, -0.2, 0.3), Le=(intensity,) * 3)])
+    return Scene(mesh, mats, lights, World(), perspective((0, -0.5, 0.2), (0, 1, 0), 70), settings())
+
+
+def _box(lo, hi):
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    return [[(x0, y0, z0), (x0, y1, z0), (x1, y1, z0), (x1, y0, z0)],  # bottom, normal -z
+            [(x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)],  # top
+            [(x0, y0, z0), (x1, y0, z0), (x1, y0, z1), (x0, y0, z1)],  # front
+            [(x0, y1, z0), (x0, y1, z1), (x1, y1, z1), (x1, y1, z0)],  # back
+            [(x0, y0, z0), (x0, y0, z1), (x0, y1, z1), (x0, y1, z0)],  # left
+            [(x1, y0, z0), (x1, y1, z0), (x1, y1, z1), (x1, y0, z1)]]  # right
+
+
+def test_stored_first_hits_carry_exactly_the_emitted_power():
+    """Closed grey box, point light inside: every photon's first hit is stored, so the
+    stored flux of first hits / N equals the light's power 4 pi I; with roulette by
+    reflectance every stored photon of a grey box carries the same flux, at every bounce."""
+    scene = closed_box_with_point_light(albedo=0.5, intensity=10.0)
+    n = 20000
+    _, first = trace_photons(scene, n, max_depth=0)
+    assert len(first["flux"]) == n
+    power = 4 * np.pi * 10.0
+    np.testing.assert_allclose(first["flux"].sum(axis=0, dtype=np.float64) / n, power, rtol=1e-6)
+    _, all_bounces = trace_photons(scene, n, max_depth=64)
+    np.testing.assert_allclose(all_bounces["flux"], power, rtol=1e-5)  # flux constant along paths
+    # Survival by the reflectance 0.5: about 2 stored photons per path (geometric series).
+    stored = len(all_bounces["flux"]) / n
+    assert abs(stored - 2.0) < 4 * np.sqrt(2.0 / n)  # variance of a geometric count: 2 per path
+
+
+def test_furnace_radiance_from_the_global_map_converges():
+    """Closed box, every face albedo 0.5 and emitting Le = 1: L = 2 everywhere. The global map
+    seen directly converges when k grows with the photon count (k ~ sqrt(N): with k fixed the
+    noise of an estimate stays ~ 1/sqrt(k)); with final gathering the bias (the k-NN blur at
+    the box's edges and corners) falls as photons grow and is under 1 %."""
+    scene = furnace_box(albedo=0.5, Le=1.0, width=16, height=16, samples=2)
+    errors = []
+    for photons, k in ((5_000, 20), (40_000, 57), (320_000, 160)):
+        img, stats = render(scene, photons=photons, caustic_photons=0, photon_view="global", photon_k=k)
+        assert stats.nonfinite == 0
+        errors.append(np.sqrt(np.mean((img / 2.0 - 1.0) ** 2)))
+    assert errors[1] < 0.7 * errors[0] and errors[2] < 0.7 * errors[1], errors
+    assert errors[2] < 0.055  # measured 0.047: mostly the blur at the edges
+    bias = [render(scene, photons=photons, caustic_photons=0, samples=4)[0].mean() / 2.0 - 1.0
+            for photons in (20_000, 200_000)]
+    assert abs(bias[1]) < 0.7 * abs(bias[0]) and abs(bias[1]) < 0.01, bias
+
+
+def test_point_light_in_a_sphere_gives_the_analytic_radiance():
+    """pbrt-v4's analytic scene: a point light I = pi at the centre of a unit sphere of albedo
+    0.5 gives L = 1 everywhere. A 3 % scale error in the photons' flux or in the estimate's
+    normalisation fails this (the tolerance is 1 %)."""
+    scene = sphere_with_point_light(width=16, height=16, samples=4)
+    img, stats = render(scene, photons=100_000, caustic_photons=0)
+    assert stats.nonfinite == 0
+    assert abs(img.mean() - 1.0) < 0.01
+    glob, _ = render(scene, photons=100_000, caustic_photons=0, photon_view="global")
+    assert abs(glob.mean() - 1.0) < 0.01
+
+
+@pytest.mark.xfail(strict=True, reason="photon estimates do not test visibility yet")
+def test_no_light_leaks_through_a_thin_wall():
+    """Two rooms share a wall 1 mm thick (its two faces are separate quads); a light in room
+    A. Photons on A's face lie well within the search radius of points on B's face, but
+    their normals face the other way: room B stays exactly black, room A is lit."""
+    rooms = _box((-1, -1, -1), (1, 1, 1))  # room A: x in [-1, 1]
+    wall_b = [(1.001, -1, -1), (1.001, -1, 1), (1.001, 1, 1), (1.001, 1, -1)]
+    room_b = [q for q in _box((1.001, -1, -1), (3, 1, 1))]
+    mesh = quads_mesh(rooms + room_b + [wall_b], [0] * (len(rooms) + len(room_b) + 1))
+    mats = Materials.make([dict(kind=MAT_DIFFUSE, base_color=(0.8,) * 3)])
+    lights = Lights.make([dict(kind=0, position=(0.9, 0.0, 0.0), Le=(50.0,) * 3)])
+    cam_b = perspective((2.9, 0.0, 0.0), (1.0, 0.0, 0.0), 60)
+    cam_a = perspective((-0.9, 0.0, 0.0), (1.0, 0.0, 0.0), 60)
+    base = Scene(mesh, mats, lights, World(), cam_b, settings(samples=2))
+    dark, _ = render(base, photons=50_000, caustic_photons=0, global_radius=0.3, photon_view="global")
+    assert dark.max() == 0.0
+    dark_full, _ = render(base, photons=50_000, caustic_photons=0, global_radius=0.3)
+    assert dark_full.max() == 0.0
+    lit, _ = render(base.replace(camera=cam_a), photons=50_000, caustic_photons=0, global_radius=0.3,
+                    photon_view="global")
+    assert lit.min() > 0.0
+
+
+def test_both_faces_of_a_single_sided_sheet_are_lit():
+    """A single quad (no thickness) lit by one light on each side: photons landing on either
+    face are stored with that face's normal, and each side's global-map radiance matches next-
+    event estimation (the path tracer's direct light) within 3 %."""
+    sheet = [[(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]]
+    mesh = quads_mesh(sheet, [0])
+    mats = Materials.make([dict(kind=MAT_DIFFUSE, base_color=(0.5,) * 3)])
+    lights = Lights.make([dict(kind=0, position=(0, 0, 1.0), Le=(4.0,) * 3),
+                          dict(kind=0, position=(0, 0, -1.0), Le=(1.0,) * 3)])
+    for z, name in ((3.0, "top"), (-3.0, "bottom")):
+        cam = perspective((0.0, 0.01, z), (0.0, 0.0, 0.0), 12)
+        scene = Scene(mesh, mats, lights, World(), cam, settings(samples=4, max_depth=1))
+        ph, _ = render(scene, photons=400_000, caustic_photons=0, photon_view="global", photon_k=200)
+        s = scene.replace(settings=scene.settings.replace(integrator="path", samples=64))
+        session = RenderSession(s)
+        session.run()
+        pt = session.film.mean()
+        assert abs(ph.mean() / pt.mean() - 1.0) < 0.03, name
+
+
+def test_image_does_not_depend_on_the_number_of_processes():
+    """Photon items, published maps and radiance photons, then pixels: the same seed gives the
+    same image bit for bit in the render process and in two worker processes."""
+    scene = sphere_with_point_light(width=24, height=24, samples=8)
+    kw = dict(photons=150_000, caustic_photons=0, batch_size=1024)
+    one, s1 = render(scene.replace(settings=scene.settings.replace(threads=1)), **kw)
+    two, s2 = render(scene.replace(settings=scene.settings.replace(threads=2)), **kw)
+    assert s1.processes == 0
+    if s2.processes == 0:
+        pytest.skip("no worker processes can be started here")
+    np.testing.assert_array_equal(one, two)
+
+
+def test_stages_are_reported_and_a_caustic_map_is_skipped_without_specular_surfaces():
+    scene = sphere_with_point_light(width=8, height=8, samples=1)
+    _, stats = render(scene, photons=20_000)
+    assert list(stats.stage_seconds) == ["photons", "radiance", "pixels"]
+    assert "no caustic map" in stats.counters.get("caustic", "")
+    assert "non-finite" in stats.summary()
