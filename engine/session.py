@@ -234,9 +234,10 @@ class _Run:
                     break
                 data, item_rays, item_embree = result
                 if stage.film:
-                    self.session._add(stage, next_done, data)
-                    self.paths_added += len(data)
-                else:
+                    L = data.pop("L") if isinstance(data, dict) else data  # dict: L + arrays to reduce
+                    self.session._add(stage, next_done, L)
+                    self.paths_added += len(L)
+                if stage.publish:
                     results.append(data)
                 self.rays += item_rays
                 self.embree_seconds += item_embree

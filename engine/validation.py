@@ -201,6 +201,10 @@ def _photon_problems(s) -> list[str]:
                 for name in ("photons", "caustic_photons", "gather_rays") if getattr(s, name) < 0]
     problems += [f"{name.replace('_', ' ')} must be >= 0 m (got {getattr(s, name)})"
                  for name in ("global_radius", "caustic_radius") if not getattr(s, name) >= 0]
+    if not s.ppm_radius >= 0:
+        problems.append(f"progressive photon radius must be >= 0 m (got {s.ppm_radius})")
+    if not 0 < s.ppm_alpha < 1:
+        problems.append(f"progressive photon alpha must be in (0, 1) (got {s.ppm_alpha})")
     if s.photon_k < 2:
         problems.append(f"photons per estimate must be at least 2 (got {s.photon_k})")
     if s.photon_view not in PHOTON_VIEWS:

@@ -18,7 +18,8 @@ from ember.engine.tracer import Tracer
 
 
 def render(scene, **kw):
-    s = scene.replace(settings=scene.settings.replace(integrator="photon", **kw))
+    kw.setdefault("integrator", "photon")
+    s = scene.replace(settings=scene.settings.replace(**kw))
     session = RenderSession(s)
     stats = session.run()
     return session.film.mean(), stats
@@ -138,11 +139,14 @@ def test_both_faces_of_a_single_sided_sheet_are_lit():
         assert abs(ph.mean() / pt.mean() - 1.0) < 0.03, name
 
 
-def test_image_does_not_depend_on_the_number_of_processes():
-    """Photon items, published maps and radiance photons, then pixels: the same seed gives the
-    same image bit for bit in the render process and in two worker processes."""
-    scene = sphere_with_point_light(width=24, height=24, samples=8)
-    kw = dict(photons=150_000, caustic_photons=0, batch_size=1024)
+@pytest.mark.parametrize("integrator", ["photon", "ppm"])
+def test_image_does_not_depend_on_the_number_of_processes(integrator):
+    """Photon items, published maps and radiance photons (ppm: per-pass maps and radii), then
+    pixels: the same seed gives the same image bit for bit in the render process and in two
+    worker processes."""
+    scene = sphere_with_point_light(width=24, height=24, samples=8 if integrator == "photon" else 4)
+    kw = dict(photons=150_000 if integrator == "photon" else 40_000, caustic_photons=0, batch_size=1024,
+              integrator=integrator)
     one, s1 = render(scene.replace(settings=scene.settings.replace(threads=1)), **kw)
     two, s2 = render(scene.replace(settings=scene.settings.replace(threads=2)), **kw)
     assert s1.processes == 0
@@ -157,3 +161,24 @@ def test_stages_are_reported_and_a_caustic_map_is_skipped_without_specular_surfa
     assert list(stats.stage_seconds) == ["photons", "radiance", "pixels"]
     assert "no caustic map" in stats.counters.get("caustic", "")
     assert "non-finite" in stats.summary()
+
+
+def test_progressive_photon_mapping_converges_on_the_analytic_sphere():
+    """ppm: the radii shrink every pass (alpha 2/3), the photon term is unbiased for a
+    uniform density, and the error against L = 1 falls as passes grow."""
+    scene = sphere_with_point_light(width=16, height=16, samples=16)
+    errors = {}
+
+    def update(progress):
+        if progress.pass_completed and progress.samples_done in (2, 16):
+            errors[progress.samples_done] = np.sqrt(np.mean((progress.film.mean() - 1.0) ** 2))
+
+    s = scene.replace(settings=scene.settings.replace(integrator="ppm", photons=20_000))
+    session = RenderSession(s)
+    stats = session.run(on_update=update)
+    img = session.film.mean()
+    assert stats.nonfinite == 0 and stats.samples == 16
+    assert abs(img.mean() - 1.0) < 0.02
+    assert errors[16] < 0.5 * errors[2], errors
+    assert "mean radius" in stats.counters["radius"]
+    assert session.integrator.radius_px.max() < session.integrator.r0  # every pixel's radius shrank

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from .path import PathIntegrator
 from .photon.integrator import PhotonIntegrator
+from .photon.ppm import ProgressivePhotonIntegrator
 
-REGISTRY = {cls.name: cls for cls in (PathIntegrator, PhotonIntegrator)}
+REGISTRY = {cls.name: cls for cls in (PathIntegrator, PhotonIntegrator, ProgressivePhotonIntegrator)}
 NAMES = tuple(REGISTRY)
 
 

@@ -28,8 +28,9 @@ from ..scene import Scene
 @dataclass(frozen=True)
 class Stage:
     """One kind of work. items: worker calls. film: each item returns radiance (N,3) for the
-    flat path indices [start, stop) cut into batches (BatchLayout); publish: the items'
-    results are reduced and published to every worker."""
+    flat path indices [start, stop) cut into batches (BatchLayout), or a dict with that as
+    "L" and other arrays; publish: the items' results (without "L") are reduced and
+    published to every worker."""
 
     name: str
     items: int

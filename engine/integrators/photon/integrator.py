@@ -249,32 +249,38 @@ class PhotonIntegrator(Integrator):
             _accumulate(L, rows, bx * Lc)
         if view == "caustic":
             return
-        base = 1 + _GROUPS * depth
-        # Direct light: one light sample, MIS against the G BSDF-sampled gather rays.
-        if not lights.empty:
-            u_light = sampler.get(base + _LIGHT, rows, 3)
-            ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2])
-            f, pdf_b = bsdf.eval(ls.wi, x)
-            cos_i = np.abs(dot(ls.wi, at(ns)))
-            w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + G * pdf_b, 1e-300))
-            contrib = bx * f * scale(ls.Le, np.divide(cos_i * w, ls.pdf, out=np.zeros(len(x)), where=ls.valid))
-            test = np.flatnonzero(max3(contrib) > 0)
-            if len(test):
-                o_shadow = offset_origin(take(at(p), test), towards(take(at(ng_f), test), take(ls.wi, test)))
-                blocked = self.ctx.accel.occluded(o_shadow, take(ls.target, test), prim[x[test]], ls.target_prim[test])
-                lit = test[~blocked]
-                _accumulate(L, rows[lit], take(contrib, lit))
+        self._direct_light(L, sampler, rows, x, bx, at, p, ng_f, ns, prim, bsdf, depth, G)
         if G == 0:
             return
         # Final gathering: G rays per point, stratified over the pixel's camera samples.
         rep = np.repeat(np.arange(len(x)), G)
-        gsampler = rng.Sampler(s.seed, pixel[x][rep], sample[x][rep] * G + np.tile(np.arange(G), len(x)), s.pattern,
+        gsampler = rng.Sampler(s.seed, pixel[rows][rep], sample[rows][rep] * G + np.tile(np.arange(G), len(x)), s.pattern,
                                domain=rng.GATHER)
         Lg = self._gather(gsampler, x[rep], p, ng_f, prim, bsdf, G)
         _accumulate(L, rows[rep], take(bx, rep) * Lg / G)
 
-    def _gather(self, sampler, pts, p, ng_f, prim, bsdf, G):
-        """Radiance (K,3) x BSDF weight of one gather ray from each diffuse point pts (K,)."""
+    def _direct_light(self, L, sampler, rows, x, bx, at, p, ng_f, ns, prim, bsdf, depth, G):
+        """One light sample at the diffuse points x, weighted by the balance heuristic against
+        G BSDF samples (Veach's multi-sample MIS; G = 0: light sampling alone)."""
+        lights = self.ctx.lights
+        if lights.empty:
+            return
+        u_light = sampler.get(1 + _GROUPS * depth + _LIGHT, rows, 3)
+        ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2])
+        f, pdf_b = bsdf.eval(ls.wi, x)
+        cos_i = np.abs(dot(ls.wi, at(ns)))
+        w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + G * pdf_b, 1e-300))
+        contrib = bx * f * scale(ls.Le, np.divide(cos_i * w, ls.pdf, out=np.zeros(len(x)), where=ls.valid))
+        test = np.flatnonzero(max3(contrib) > 0)
+        if len(test):
+            o_shadow = offset_origin(take(at(p), test), towards(take(at(ng_f), test), take(ls.wi, test)))
+            blocked = self.ctx.accel.occluded(o_shadow, take(ls.target, test), prim[x[test]], ls.target_prim[test])
+            lit = test[~blocked]
+            _accumulate(L, rows[lit], take(contrib, lit))
+
+    def _gather(self, sampler, pts, p, ng_f, prim, bsdf, G, emission_only=False):
+        """Radiance (K,3) x BSDF weight of one gather ray from each diffuse point pts (K,);
+        emission_only: only the emission the ray finds (the BSDF strategy of direct light)."""
         scene, s, accel, lights = self.scene, self.scene.settings, self.ctx.accel, self.ctx.lights
         u = sampler.get(0, None, 3)
         bs = _sample_rows(bsdf, pts, u)
@@ -315,6 +321,8 @@ class PhotonIntegrator(Integrator):
                     pm = pdf_mis[keep[r]]
                     w = np.where(delta[keep[r]], 1.0, pm / np.maximum(pm + pdf_light, 1e-300))
                     _accumulate(out, g[r], take(beta, r) * scale(take(scene.materials.emission, mat[r]), w))
+            if emission_only:
+                break
             wo = -d
             ng_y, ns_y = shading_frame(mesh, self.flat_normal, hprim, bary, ng, wo)
             stores = self.stores[mat]
@@ -384,4 +392,4 @@ def _full(u, rows, n):
 def _no_photons() -> dict:
     z3 = np.zeros((0, 3), np.float32)
     return {"position": z3, "wi": z3, "normal": z3, "flux": z3, "caustic": np.zeros(0, bool),
-            "bounces": np.array([0])}
+            "first": np.zeros(0, bool), "bounces": np.array([0])}

@@ -55,7 +55,8 @@ class PhotonTracer:
         """Trace one photon path per row of `sampler` (domain PHOTONS).
 
         Returns position, wi (toward where the photon came from), normal (the geometric normal
-        on the arrival side), flux (M,3) float32 and caustic (M,) bool of the stored photons,
+        on the arrival side), flux (M,3) float32, caustic (M,) bool and first (M,) bool (the
+        photon's first hit: direct light) of the stored photons,
         and `bounces` (the photon-surface interactions traced, for statistics). caustic_only:
         only caustic photons are stored and paths end at their first diffuse hit."""
         from ...errors import Cancelled
@@ -68,7 +69,7 @@ class PhotonTracer:
         o32 = take(em.o, live).astype(np.float32)
         d, beta, skip = take(em.d, live), take(em.flux, live), em.prim[live]
         specular = np.ones(len(live), bool)  # every bounce so far specular (none yet)
-        out = {key: [] for key in ("position", "wi", "normal", "flux", "caustic")}
+        out = {key: [] for key in ("position", "wi", "normal", "flux", "caustic", "first")}
         mesh, bounces = self.scene.mesh, 0
         for depth in range(self.max_depth + 1):
             if stop is not None and stop.is_set():
@@ -95,6 +96,7 @@ class PhotonTracer:
                 out["normal"].append(take(ng_f, r).astype(np.float32))
                 out["flux"].append(take(beta, r).astype(np.float32))
                 out["caustic"].append(caustic[r])
+                out["first"].append(np.full(len(r), depth == 0))
             go = ~diffuse if caustic_only else np.ones(len(idx), bool)
             go &= dot(wo, ns) > 0  # shading and geometric normals disagree: a leak, drop
             if depth == self.max_depth or not go.any():
@@ -117,7 +119,8 @@ class PhotonTracer:
             o32 = offset_origin(take(p, keep), towards(take(ng_f, keep), d))
             skip = prim[keep]
         arrays = {key: (np.concatenate(v) if v else np.zeros((0, 3), np.float32)) for key, v in out.items()
-                  if key != "caustic"}
-        arrays["caustic"] = np.concatenate(out["caustic"]) if out["caustic"] else np.zeros(0, bool)
+                  if key not in ("caustic", "first")}
+        for key in ("caustic", "first"):
+            arrays[key] = np.concatenate(out[key]) if out[key] else np.zeros(0, bool)
         arrays["bounces"] = np.array([bounces])
         return arrays
