@@ -43,7 +43,7 @@ def validate(scene: Scene) -> None:
         problems.append(f"noise target must be >= 0 (got {s.noise_target})")
     if s.integrator not in INTEGRATORS:
         problems.append(f"unknown integrator {s.integrator!r} (use one of {', '.join(INTEGRATORS)})")
-    problems += _photon_problems(s)
+    problems += photon_problems(s)
     if problems:
         raise EmberError("Invalid render settings: " + "; ".join(problems))
     check_light_values(scene)
@@ -195,7 +195,7 @@ def has_light(scene: Scene) -> bool:
 PHOTON_VIEWS = ("full", "global", "caustic")
 
 
-def _photon_problems(s) -> list[str]:
+def photon_problems(s) -> list[str]:
     """The photon-mapping settings (checked whatever the integrator: they are saved with it)."""
     problems = [f"{name.replace('_', ' ')} must be >= 0 (got {getattr(s, name)})"
                 for name in ("photons", "caustic_photons", "gather_rays") if getattr(s, name) < 0]

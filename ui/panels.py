@@ -79,7 +79,7 @@ class EMBER_RENDER_PT_photons(EmberRenderPanel, bpy.types.Panel):
 
     @classmethod
     def poll(cls, context):
-        return super().poll(context) and context.scene.ember.integrator == 'PHOTON'
+        return super().poll(context) and context.scene.ember.integrator in ('PHOTON', 'PPM')
 
     def draw(self, context):
         layout = self.layout
@@ -87,6 +87,11 @@ class EMBER_RENDER_PT_photons(EmberRenderPanel, bpy.types.Panel):
         layout.use_property_decorate = False
         settings = context.scene.ember
         col = layout.column()
+        if settings.integrator == 'PPM':
+            col.prop(settings, "photons", text="Photons per Pass")
+            col.prop(settings, "ppm_radius")
+            col.prop(settings, "ppm_alpha")
+            return
         col.prop(settings, "photons")
         col.prop(settings, "caustic_photons")
         col.prop(settings, "photon_k")

@@ -107,6 +107,18 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
                     "(Christensen 1999): much faster, slightly more blurred",
         default=True,
     )
+    ppm_radius: FloatProperty(
+        name="Initial Radius",
+        description="Progressive photon mapping: each pixel's first gathering radius "
+                    "(0 = 1 % of the scene's bounding radius); it shrinks every pass",
+        default=0.0, min=0.0, subtype='DISTANCE', unit='LENGTH',
+    )
+    ppm_alpha: FloatProperty(
+        name="Alpha",
+        description="Progressive photon mapping: share of each pass's photons kept as the radius "
+                    "shrinks (smaller: faster shrinking, more noise)",
+        default=2.0 / 3.0, min=0.01, max=0.99,
+    )
     photon_view: EnumProperty(
         name="View",
         description="What the photon integrator shows",

@@ -15,13 +15,14 @@ from ..errors import EmberError
 from ..rng import PATTERNS
 from ..integrators import NAMES as INTEGRATORS
 from ..scene import FILTERS, Settings
+from ..validation import photon_problems
 
 _DEFAULTS = Settings()
 
 # scene.ember field -> Settings field (same name); read with getattr so plain bpy works.
 _EMBER_FIELDS = ("samples", "max_depth", "seed", "time_limit", "noise_target", "batch_size",
                  "photons", "caustic_photons", "photon_k", "global_radius", "caustic_radius", "gather_rays",
-                 "radiance_photons")
+                 "radiance_photons", "ppm_radius", "ppm_alpha")
 _INTEGRATOR_ENUM = {name.upper(): name for name in INTEGRATORS}  # UI enum id -> registry name
 
 
@@ -126,4 +127,7 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
 
     settings = Settings(**kw)
     _validate(settings)
+    problems = photon_problems(settings)
+    if problems:
+        raise EmberError("Invalid photon settings: " + "; ".join(problems) + ".")
     return settings
