@@ -124,11 +124,12 @@ def pdf_reflection(alpha, wo, wi):
 def eval_reflection(alpha, wo, wi, F):
     """f (N,3) = F D(h) G2 / (4 cos_o cos_i); F (N,3) is the Fresnel term at h = |wo + wi|.
 
-    0 unless both directions are above the surface.
+    0 unless both directions are above the surface. Cosines so small that their product
+    underflows (1e-300) give 0, not 0 / 0 = NaN (G2 is 0 there).
     """
-    ok = (wo[:, 2] > 0.0) & (wi[:, 2] > 0.0)
-    h = normalize(wo + wi)
     den = 4.0 * wo[:, 2] * wi[:, 2]
+    ok = (wo[:, 2] > 0.0) & (wi[:, 2] > 0.0) & (den > 0.0)
+    h = normalize(wo + wi)
     s = np.divide(D(alpha, h) * G2(alpha, wo, wi), den, out=np.zeros(len(wo)), where=ok)
     return np.asarray(F, dtype=np.float64) * s[:, None]
 
