@@ -169,6 +169,10 @@ def test_mixture_sampling_matches_mixture_pdf(theta_deg, inside):
 
 
 def test_sample_weight_and_pdf_are_those_of_eval():
+    """Consistency only: sample() and eval() share Closure._mixture, so this cannot see a wrong
+    mixture weight; test_sampler_directions checks the values against formulas written there
+    (test_mixture_pdf_and_weight_against_independent_formulas) and the pdf's integral against
+    the fraction of kept samples."""
     c = _closure(MIXED, [0.5, 0.2, 0.8], 5000)
     s = c.sample(RNG.random((5000, 2)), RNG.random(5000))
     rows = np.flatnonzero(s.valid)
