@@ -88,9 +88,13 @@ class RenderSession:
     def __init__(self, scene: Scene):
         validate(scene)
         t0 = time.perf_counter()
+        self.warnings: list[str] = []
+        if scene.settings.noise_target > 0 and not integrators.REGISTRY[scene.settings.integrator].noise_target:
+            self.warnings.append(f"The noise target does not apply to the '{scene.settings.integrator}' integrator "
+                                 "(its passes are not independent samples of one image); it is ignored.")
+            scene = scene.replace(settings=scene.settings.replace(noise_target=0.0))
         self.scene = scene
         s = scene.settings
-        self.warnings: list[str] = []
         self.integrator = integrators.create(scene)  # the render-process side: stages, reduce
         self.layout = self.integrator.layout
         self.film = Film(s.width, s.height)

@@ -19,9 +19,10 @@ from .scene import Scene
 
 
 class BatchLayout:
-    def __init__(self, scene: Scene):
+    def __init__(self, scene: Scene, batch_size: int | None = None):
+        """batch_size: paths per film item (default Settings.batch_size)."""
         s = scene.settings
-        self.batch_size = s.batch_size
+        self.batch_size = batch_size or s.batch_size
         x0, y0, x1, y1 = s.border
         ys, xs = np.mgrid[y0:y1, x0:x1]
         self.px, self.py = xs.ravel(), ys.ravel()

@@ -182,3 +182,12 @@ def test_progressive_photon_mapping_converges_on_the_analytic_sphere():
     assert errors[16] < 0.5 * errors[2], errors
     assert "mean radius" in stats.counters["radius"]
     assert session.integrator.radius_px.max() < session.integrator.r0  # every pixel's radius shrank
+
+
+def test_a_noise_target_is_ignored_with_a_warning_by_ppm():
+    scene = sphere_with_point_light(width=8, height=8, samples=3)
+    s = scene.replace(settings=scene.settings.replace(integrator="ppm", photons=5_000, noise_target=0.5))
+    session = RenderSession(s)
+    stats = session.run()
+    assert any("noise target" in w for w in session.warnings)
+    assert stats.samples == 3 and stats.stopped_by == ""

@@ -54,6 +54,9 @@ class Integrator:
     name: ClassVar[str] = ""
     label: ClassVar[str] = ""
     description: ClassVar[str] = ""
+    # Whether the film's noise estimate (passes as independent samples of one mean) describes
+    # the image, so that a noise target can stop the render.
+    noise_target: ClassVar[bool] = True
 
     def __init__(self, scene: Scene):
         from ..tracer import BatchLayout

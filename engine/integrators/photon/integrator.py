@@ -61,6 +61,11 @@ class PhotonIntegrator(Integrator):
     def __init__(self, scene):
         super().__init__(scene)
         s = scene.settings
+        # Every camera path may spawn G gather rays: fewer paths per item keep an item's rays
+        # (memory) and its duration (cancel latency) near the path tracer's.
+        from ...tracer import BatchLayout
+
+        self.layout = BatchLayout(scene, max(1024, s.batch_size // max(1, s.gather_rays)))
         from ...accel import _bounding_radius
 
         v = scene.mesh.vertices

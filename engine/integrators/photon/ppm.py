@@ -38,8 +38,13 @@ class ProgressivePhotonIntegrator(PhotonIntegrator):
     label = "Progressive Photon Mapping"
     description = "Stochastic progressive photon mapping: photon radii shrink every pass (consistent)"
 
+    noise_target = False  # the film's noise estimate sees only the part averaged over passes
+
     def __init__(self, scene):
         super().__init__(scene)
+        from ...tracer import BatchLayout
+
+        self.layout = BatchLayout(scene)  # one BSDF ray per camera path: the usual batches
         s = scene.settings
         self.n_caustic_items = 0
         self.n_global_items = -(-s.photons // PHOTON_BATCH)
