@@ -191,3 +191,17 @@ def test_a_noise_target_is_ignored_with_a_warning_by_ppm():
     stats = session.run()
     assert any("noise target" in w for w in session.warnings)
     assert stats.samples == 3 and stats.stopped_by == ""
+
+
+@pytest.mark.parametrize("integrator", ["photon", "ppm"])
+def test_cancel_stops_during_the_photon_stage(integrator):
+    """Esc while photons are traced: the render ends in that stage, no pixel is rendered."""
+    import time
+
+    scene = sphere_with_point_light(width=16, height=16, samples=64)
+    s = scene.replace(settings=scene.settings.replace(integrator=integrator, photons=20_000_000, threads=1))
+    session = RenderSession(s)
+    t0 = time.perf_counter()
+    stats = session.run(should_stop=lambda: time.perf_counter() - t0 > 0.5)
+    assert stats.cancelled and stats.stopped_by == "cancel"
+    assert list(stats.stage_seconds) == ["photons"] and stats.samples == 0
