@@ -7,8 +7,9 @@ Photons lie on the six faces of a unit box (a 2D set in 3D, as in a scene), dens
 along one face axis, so irradiance is known everywhere: E = (M/6) (3/7) (1 + a)^2 Phi / N_e.
 Every query runs on one thread (OMP_NUM_THREADS does not matter: the map sets it per call), as
 in a worker process. Memory is malloc's own count (glibc mallinfo2) around the build, which
-sees C allocations that NumPy's nbytes does not. Timings are the best of a few repeats (the
-machine is shared).
+sees C allocations that NumPy's nbytes does not. Times are the least CPU time of a few repeats
+(the machine is shared); queries are in Morton order unless said otherwise, as a batch of
+neighbouring pixels asks.
 """
 import argparse
 import ctypes
@@ -43,11 +44,13 @@ def heap_bytes():
 
 
 def best_time(fn, repeats=3):
+    """Least CPU time of the process over repeats (one-threaded work: CPU time is what a worker
+    on its own core would take; wall time on a shared machine varies 2x), and fn's result."""
     best, out = np.inf, None
     for _ in range(repeats):
-        t = time.perf_counter()
+        t = time.process_time()
         out = fn()
-        best = min(best, time.perf_counter() - t)
+        best = min(best, time.process_time() - t)
     return best, out
 
 
@@ -95,11 +98,12 @@ def irradiance_true(a, m, n_emitted):
 # ----------------------------------------------------------------------------------------------
 
 def study_libraries(m, n_query, k):
-    print(f"\n## kd-tree libraries: {m} float32 points on box faces, {n_query} queries, k = {k}, one thread")
+    print(f"\n## kd-tree libraries: {m} float32 points on box faces (Morton order), {n_query} queries, "
+          f"k = {k}, one thread, CPU seconds")
     rng = np.random.default_rng(1)
     p, n, _ = box_points(rng, m)
-    p32 = p.astype(np.float32)
-    q32 = p32[rng.integers(0, m, n_query)] + rng.normal(0, 1e-3, (n_query, 3)).astype(np.float32)
+    p32 = p[pm.morton_order(p)].astype(np.float32)  # as PhotonMap.pack stores them
+    q32 = p32[np.sort(rng.integers(0, m, n_query))] + rng.normal(0, 1e-3, (n_query, 3)).astype(np.float32)
     r_max = 4 * np.sqrt(k / (np.pi * m / 6))
     print("| library | build s | query k-NN pts/s | memory B/point (malloc) |")
     print("|---|---|---|---|")
@@ -117,14 +121,18 @@ def study_libraries(m, n_query, k):
         ("cKDTree unbalanced, non-compact", lambda: cKDTree(p32, balanced_tree=False, compact_nodes=False),
          lambda t: t.query(q32, k=k, distance_upper_bound=r_max, workers=1)),
     ]
+    trees, rows = [], []
     for name, build, query in variants:
         h0 = heap_bytes()
-        t_build, tree = best_time(build, 2)
+        t_build, tree = best_time(build, 3)
         h1 = heap_bytes()
-        mem = (h1 - h0) / m if h0 is not None else float("nan")
-        t_query, _ = best_time(lambda: query(tree), 2)
+        trees.append(tree)
+        rows.append([name, t_build, np.inf, (h1 - h0) / m if h0 is not None else float("nan")])
+    for _ in range(4):  # interleaved rounds: a busy spell on the machine hits every variant
+        for row, tree, (_, _, query) in zip(rows, trees, variants):
+            row[2] = min(row[2], best_time(lambda: query(tree), 1)[0])
+    for name, t_build, t_query, mem in rows:
         print(f"| {name} | {t_build:.3f} | {n_query / t_query:,.0f} | {mem:.1f} |")
-        del tree
 
 
 def study_photon_map(m, n_query, k):
@@ -142,6 +150,7 @@ def study_photon_map(m, n_query, k):
     print(f"- memory: packed {packed / m:.1f} B/photon + tree {(h1 - h0) / m:.1f} B/photon measured "
           f"(malloc); nbytes says {photon_map.nbytes / m:.1f} B/photon in all (limit 64)")
     qi = rng.integers(0, m, n_query)
+    qi = qi[pm.morton_order(p[qi])]
     q, nq = p[qi] + 1e-4 * n[qi], n[qi]
     r_max = 4 * np.sqrt(k / (np.pi * m / 6))
     albedo = np.array([0.5, 0.6, 0.7]) / np.pi
@@ -151,6 +160,9 @@ def study_photon_map(m, n_query, k):
                                                        kk, r_max, kernel="epanechnikov"))
         print(f"- k = {kk}: irradiance {n_query / t_e:,.0f} points/s, radiance (Lambert f, Epanechnikov) "
               f"{n_query / t_l:,.0f} points/s")
+    shuffle_q = rng.permutation(n_query)
+    t_e, _ = best_time(lambda: photon_map.irradiance(q[shuffle_q], nq[shuffle_q], k, r_max))
+    print(f"- k = {k}, queries in random order: irradiance {n_query / t_e:,.0f} points/s")
     r = np.full(n_query, np.sqrt(k / (np.pi * m / 6)))
     t_g, (_, count) = best_time(lambda: photon_map.gather_radius(q, nq, r))
     print(f"- gather_radius with r holding ~{count.mean():.0f} photons: {n_query / t_g:,.0f} points/s")
@@ -165,7 +177,7 @@ def study_photon_map(m, n_query, k):
           f"{n_query / t_s:,.0f} in random order; index build {t_build:.3f} s vs {t_b:.3f} s")
     # chunk size
     saved = pm._CHUNK_PAIRS
-    for pairs in (1 << 15, 1 << 17, 1 << 19, 1 << 21):
+    for pairs in (1 << 14, 1 << 17, 1 << 19, 1 << 21):
         pm._CHUNK_PAIRS = pairs
         t_c, _ = best_time(lambda: photon_map.irradiance(q, nq, k, r_max), 2)
         print(f"- chunk of {pairs} pairs ({pairs // k} points): {n_query / t_c:,.0f} points/s")
@@ -179,6 +191,8 @@ def study_radiance_photons(m, n_query, k, stride):
     r_max = 4 * np.sqrt(k / (np.pi * m / 6))
     t_build, rp = best_time(lambda: RadiancePhotons.build(photon_map, k, r_max, stride=stride), 1)
     q, nq, a = box_points(rng, n_query)
+    order = pm.morton_order(q)
+    q, nq, a = q[order], nq[order], a[order]
     q = q + 1e-4 * nq
     t_full, (E_full, _) = best_time(lambda: photon_map.irradiance(q, nq, k, r_max))
     t_rp, E_rp = best_time(lambda: rp.lookup(q, nq, r_max))

@@ -6,6 +6,7 @@ The statistical tests use the exact unbiasedness of the (k-1)/(pi r^2) form on a
 independent, so their mean is z-tested with the sample variance, Sidak-corrected.
 """
 import sys
+import tracemalloc
 
 import numpy as np
 import pytest
@@ -326,8 +327,14 @@ def test_memory_per_photon_and_no_copies():
     assert photon_map.nbytes >= sum(a.nbytes for a in arrays.values()) + 4 * m
     for key, a in arrays.items():
         assert photon_map.arrays[key] is a
-    E, _ = photon_map.irradiance(rng.random((10, 3)), wi[:10], K, 0.1)
-    assert np.all(np.isfinite(E))
+    # queries run in chunks: 20k points x k = 200 would be ~800 MB of temporaries at once
+    q = rng.random((20_000, 3))
+    tracemalloc.start()
+    E, _ = photon_map.radiance(q, wi[:20_000], lambda rows, w: np.abs(w), 200, 0.2, kernel="cone")
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert np.all(np.isfinite(E)) and np.any(E > 0)
+    assert peak < 100e6, peak
 
 
 def test_ckdtree_fallback_gives_the_same_estimates(monkeypatch):
