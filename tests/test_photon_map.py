@@ -352,6 +352,16 @@ def test_ckdtree_fallback_gives_the_same_estimates(monkeypatch):
         assert np.allclose(a[0], b[0], rtol=1e-5) and np.allclose(a[1], b[1], rtol=1e-5)
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the wheel's OpenMP runtime is checked on Linux")
+def test_queries_can_be_held_to_one_thread():
+    """Workers use every core already: the map must find pykdtree's OpenMP runtime to set one
+    thread per query (else each query would start one thread per core)."""
+    photon_map = PhotonMap(np.random.default_rng(0).random((100, 3)), np.tile(UP, (100, 1)),
+                           np.ones((100, 3)), np.tile(UP, (100, 1)), 100)
+    assert photon_map._index.kind == "pykdtree"
+    assert photon_map._index._threads is not None
+
+
 def test_empty_and_small_maps():
     empty = PhotonMap(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), 10)
     q, n = np.zeros((3, 3)), np.tile(UP, (3, 1))

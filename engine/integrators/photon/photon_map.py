@@ -141,12 +141,16 @@ def _omp_set_num_threads():
     import pykdtree
 
     root = os.path.dirname(pykdtree.__file__)
-    for pattern in (root + ".libs/*omp*", os.path.join(root, ".dylibs", "*omp*")):
-        for path in sorted(glob.glob(pattern)):
-            try:
-                return ctypes.CDLL(path).omp_set_num_threads
-            except (OSError, AttributeError):
-                continue
+    # Linux wheels bundle libgomp beside the package, macOS ones libomp inside it; Windows uses
+    # the system's vcomp140 (loaded already: CDLL returns the same library)
+    candidates = sorted(glob.glob(root + ".libs/*omp*")) + sorted(glob.glob(os.path.join(root, ".dylibs", "*omp*")))
+    if os.name == "nt":
+        candidates.append("vcomp140.dll")
+    for path in candidates:
+        try:
+            return ctypes.CDLL(path).omp_set_num_threads
+        except (OSError, AttributeError):
+            continue
     return None
 
 
