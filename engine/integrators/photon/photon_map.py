@@ -23,13 +23,19 @@ Storage (`PhotonMap.pack`): float32 position (12 B), octahedral int16 w_p and n_
 Cigolle et al. 2014, "A Survey of Efficient Representations for Independent Unit Vectors"),
 float32 flux (12 B): 32 B per photon. The search structure is pykdtree's (float32 points used in
 place, uint32 permutation, 11-12 B per photon with its nodes); scipy's cKDTree is the fallback
-where pykdtree is missing (it copies the points as float64: about 85 B per photon, over budget).
+where pykdtree is missing (it copies the points as float64: 51 B per photon for the tree, 83 B
+in all, over budget).
 bench/photon_map_study.py measures both.
 
 Radiance photons (Christensen 1999, "Faster Photon Map Global Illumination"; pbrt-v2
 integrators/photonmap.cpp): the irradiance at every j-th photon, computed once from the map, so a
 final-gather ray needs one nearest-neighbour lookup (with a normal check) instead of a k-NN
 estimate; the caller multiplies by the diffuse reflectance / pi.
+
+Measured (bench/photon_map_study.py, 1M photons on a box, k = 50, one thread, CPU time): index
+build 0.03 s (0.25 s without the Morton order), pack 0.3 s, 48 B per photon by `nbytes` (43.5 B
+by malloc's count), irradiance 136k points/s for coherent queries (84k/s in random order),
+radiance-photon lookup 1.2M points/s (8.7x), same error against the truth as the full estimate.
 
 Every query is vectorised over N points, processed in chunks so that the N x k temporaries stay
 under ~25 MB, on ONE thread (queries run inside worker processes, one per core).
