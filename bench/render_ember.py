@@ -75,8 +75,9 @@ class _Snapshots:
         self.errors.append(message)
 
 
-def render(scene, integrator: str, budgets, seed: int = 0) -> EmberRun:
-    """Render the open .blend's `scene` with Ember for max(budgets) seconds."""
+def render(scene, integrator: str, budgets, seed: int = 0, overrides=None) -> EmberRun:
+    """Render the open .blend's `scene` with Ember for max(budgets) seconds; overrides:
+    scene.ember property -> value (a labelled variant, e.g. radiance_photons=False)."""
     scene.render.engine = "EMBER"
     e = scene.ember
     e.integrator = integrator.upper()
@@ -89,6 +90,10 @@ def render(scene, integrator: str, budgets, seed: int = 0) -> EmberRun:
     e.time_limit = float(max(budgets))
     e.noise_target = 0.0
     e.seed = seed
+    for k, v in (overrides or {}).items():
+        if not hasattr(e, k):
+            raise RuntimeError(f"scene.ember has no setting '{k}'")
+        setattr(e, k, type(getattr(e, k))(v))
     shots = _Snapshots(budgets)
     final.listeners.append(shots)
     try:

@@ -57,12 +57,17 @@ def parse_args(argv):
     ap.add_argument("--quick", action="store_true", help="quick scenes, short budgets, no 2048x2048")
     ap.add_argument("--scenes", help="comma-separated scene names (default: all, or the quick ones)")
     ap.add_argument("--integrators", help="comma-separated Ember integrators (default: all)")
+    ap.add_argument("--variant", action="append", default=[], metavar="LABEL=INTEGRATOR:KEY=VALUE,...",
+                    help="an extra, labelled Ember run with non-default settings, e.g. "
+                         "'photon_no_rp=photon:radiance_photons=0' (repeatable; bool values 0/1)")
     ap.add_argument("--budgets", type=_budgets, help="comma-separated seconds")
     ap.add_argument("--no-cycles", action="store_true", help="Ember only")
     ap.add_argument("--no-throughput", action="store_true", help="skip the 256x256 throughput study")
     ap.add_argument("--no-memory", action="store_true", help="skip the peak-memory renders")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", help="output folder")
+    ap.add_argument("--merge", action="store_true",
+                    help="keep the scenes of an existing OUT/results.json that this run does not measure")
     return ap.parse_args(argv)
 
 
@@ -117,7 +122,37 @@ def _open(path, resolution):
     return scene
 
 
-def bench_scene(bs, args, budgets, integrators, resolution):
+def parse_variant(text):
+    """'label=integrator:key=value,key=value' -> (label, integrator, {key: value})."""
+    try:
+        label, rest = text.split("=", 1)
+        integ, _, opts = rest.partition(":")
+        settings = {}
+        for kv in filter(None, opts.split(",")):
+            k, v = kv.split("=", 1)
+            settings[k.strip()] = _value(v.strip())
+    except ValueError:
+        raise BenchError(f"--variant {text!r}: expected LABEL=INTEGRATOR:KEY=VALUE,...")
+    return label.strip(), integ.strip(), settings
+
+
+def _value(v):
+    for conv in (int, float):
+        try:
+            return conv(v)
+        except ValueError:
+            pass
+    return {"true": True, "false": False}.get(v.lower(), v)
+
+
+def _keep_images(store, key, snapshots):
+    """Every snapshot's image into `store` (saved as OUT/images.npz: region metrics and
+    figures can be recomputed without re-rendering)."""
+    for i, s in enumerate(snapshots):
+        store[f"{key}|{i}"] = np.asarray(s.image, np.float32)
+
+
+def bench_scene(bs, args, budgets, integrators, resolution, images=None):
     from bench import metrics, render_cycles, render_ember
     ref = _reference(bs, resolution)
     result = {"note": bs.note, "file": f"scenes/{bs.file}"}
@@ -130,20 +165,24 @@ def bench_scene(bs, args, budgets, integrators, resolution):
     result["resolution"] = f"{w}x{h}"
     runs = {}
     final_samples = None
-    for integ in integrators:
+    jobs = [(integ, integ, {}) for integ in integrators] + [parse_variant(v) for v in args.variant]
+    for label, integ, overrides in jobs:
         scene = _open(bs.path, w)
         load0 = _load()
         try:
-            r = render_ember.render(scene, integ, budgets, args.seed)
+            r = render_ember.render(scene, integ, budgets, args.seed, overrides)
             if not r.snapshots:
                 raise RuntimeError(f"no image within {max(budgets):g} s")
         except RuntimeError as e:
-            runs[f"ember:{integ}"] = {"error": str(e)}
-            print(f"  ember:{integ}: failed: {e}", flush=True)
+            runs[f"ember:{label}"] = {"error": str(e)}
+            print(f"  ember:{label}: failed: {e}", flush=True)
             continue
         st = r.stats
-        final_samples = final_samples or r.snapshots[-1].samples  # the first integrator's (path)
-        runs[f"ember:{integ}"] = {
+        if images is not None:
+            _keep_images(images, f"{bs.name}|ember:{label}", r.snapshots)
+        if integ == "path" and not overrides:
+            final_samples = r.snapshots[-1].samples  # equal samples: the path tracer's count
+        runs[f"ember:{label}"] = {
             "points": _points(r.snapshots, ref),
             "throughput": {"samples_per_second": r.snapshots[-1].samples / max(st.elapsed, 1e-9),
                            "rays_per_second": st.rays_per_second, "rays": st.rays,
@@ -152,16 +191,20 @@ def bench_scene(bs, args, budgets, integrators, resolution):
             "phases": {"export_s": r.export_seconds, "build_s": st.build_seconds,
                        "trace_s": r.session_seconds - st.build_seconds,
                        "other_s": r.wall_seconds - r.export_seconds - r.session_seconds},
+            "stage_seconds": dict(st.stage_seconds), "counters": {k: str(v) for k, v in st.counters.items()},
+            "integrator": integ, "overrides": overrides, "settings": _integrator_settings(scene),
             "film_nonfinite_samples": int(st.nonfinite), "stopped_by": st.stopped_by,
             "load": [load0, _load()]}
-        print(f"  ember:{integ}: {r.snapshots[-1].samples:.0f} spp in {st.elapsed:.1f} s, "
-              f"relMSE {runs[f'ember:{integ}']['points'][-1]['relmse']:.3e}", flush=True)
+        print(f"  ember:{label}: {r.snapshots[-1].samples:.0f} spp in {st.elapsed:.1f} s, "
+              f"relMSE {runs[f'ember:{label}']['points'][-1]['relmse']:.3e}", flush=True)
     if not args.no_cycles:
         scene = _open(bs.path, w)
         load0 = _load()
         extra = [max(1, round(final_samples))] if final_samples else []
         c = render_cycles.render(scene, budgets, args.seed, extra_samples=extra)
         pts = _points(c.snapshots, ref)
+        if images is not None:
+            _keep_images(images, f"{bs.name}|cycles", c.snapshots)
         runs["cycles"] = {"points": pts[:len(budgets)], "equal_samples": pts[len(budgets):],
                           "samples_per_second": c.samples_per_second, "sync_s": c.sync_seconds,
                           "load": [load0, _load()]}
@@ -169,6 +212,19 @@ def bench_scene(bs, args, budgets, integrators, resolution):
               f"{pts[len(budgets) - 1]['relmse']:.3e}", flush=True)
     result["runs"] = runs
     return result
+
+
+def _integrator_settings(scene):
+    """The photon settings the render used (the integrators' defaults unless the .blend sets
+    them): scene.ember's photon/ppm properties by name."""
+    e = scene.ember
+    keys = [k for k in e.bl_rna.properties.keys()
+            if any(w in k for w in ("photon", "gather", "radius", "alpha", "knn", "k_nearest", "caustic"))]
+    out = {}
+    for k in keys:
+        v = getattr(e, k)
+        out[k] = v if isinstance(v, (int, float, str, bool)) else str(v)
+    return out
 
 
 def throughput(args, seconds):
@@ -259,10 +315,24 @@ def main(argv=None):
                        "relmse_eps": EPS}, "scenes": {}}
     for n in notes:
         print("note:", n, flush=True)
-    save = lambda: (out_dir / "results.json").write_text(json.dumps(results, indent=1))  # noqa: E731
+    images = {}
+    old_images = {}
+    if args.merge and (out_dir / "results.json").exists():
+        old = json.loads((out_dir / "results.json").read_text())
+        measured = {bs.name for bs in scenes}
+        results["scenes"] = {k: v for k, v in old.get("scenes", {}).items() if k not in measured}
+        results["run"]["merged"] = {"earlier_run": old["run"], "scenes_kept": sorted(results["scenes"])}
+        if (out_dir / "images.npz").exists():
+            with np.load(out_dir / "images.npz") as z:
+                old_images = {k: z[k] for k in z.files if k.split("|")[0] not in measured}
+
+    def save():
+        (out_dir / "results.json").write_text(json.dumps(results, indent=1))
+        np.savez_compressed(out_dir / "images.npz", **old_images, **images)
+
     for bs in scenes:
         print(f"{bs.name}:", flush=True)
-        results["scenes"][bs.name] = bench_scene(bs, args, budgets, integrators, RESOLUTION)
+        results["scenes"][bs.name] = bench_scene(bs, args, budgets, integrators, RESOLUTION, images)
         if "skipped" in results["scenes"][bs.name]:
             print("  skipped:", results["scenes"][bs.name]["skipped"], flush=True)
         save()  # a long run keeps what it measured if a later step fails

@@ -46,6 +46,8 @@ SCENES = (
                note="objects under a procedural HDRI with a small bright sun"),
     BenchScene("caustic", "caustic.blend", "scenes/build_bench.py", reference="mitsuba",
                note="glass sphere on a diffuse floor, 3 cm spherical emitter"),
+    BenchScene("caustic_point", "caustic_point.blend", "scenes/build_bench.py", reference="mitsuba",
+               note="the caustic scene lit by a radius-0 point light of the emitter's power"),
     BenchScene("interior", "interior.blend", "scenes/build_bench.py", quick=True, ref_samples=1024,
                note="room lit through a window by sun and sky"),
     BenchScene("hard_tiny_light", "hard_tiny_light.blend", "scenes/build_bench.py",

@@ -9,6 +9,10 @@ Scenes (bench/scenes.py lists them with the other scene scripts' files):
   caustic_specular_only the same, but diffuse surfaces and the emitter are black to camera
                         rays: only paths whose first bounce is the glass remain (the part of
                         the caustic reference that Mitsuba's particle tracer cannot give)
+  caustic_point         the caustic scene with the emitter replaced by a point light of radius
+                        0 at its centre with the same power (a path tracer cannot find L S+ D
+                        paths from it at all)
+  caustic_point_specular_only  the same with the diffuse surfaces black to camera rays
   hard_tiny_light       Cornell box, light shrunk to 1 cm x 1 cm at the same power
   hard_light_near_wall  Cornell box lit by a 0.6 m area light facing down whose edge is 5 mm
                         from the back wall: a near-singular bright stripe on the wall
@@ -134,11 +138,40 @@ def build_interior():
 CAUSTIC_LIGHT = dict(centre=(0.9, 0.7, 1.7), radius=0.03, radiance=(4000.0, 3800.0, 3400.0))
 
 
-def build_caustic(specular_only: bool = False):
+def icosphere_area(radius, subdivisions):
+    """Surface area of bmesh's icosphere (the emitter's facets, not the true sphere's)."""
+    bm = bmesh.new()
+    bmesh.ops.create_icosphere(bm, subdivisions=subdivisions, radius=radius)
+    area = sum(f.calc_area() for f in bm.faces)
+    bm.free()
+    return area
+
+
+def caustic_point_light():
+    """(colour, Blender power W) of the point light that replaces the caustic scene's emitter.
+
+    The icosphere (area A, radiance L, one-sided Lambertian outward) emits P = pi A L per
+    channel; a convex Lambertian emitter's intensity averaged over directions is P / (4 pi)
+    (its mean projected area is A / 4). Cycles gives a radius-0 point light of power P the
+    intensity I = P / (4 pi) W/sr (blender.md, light.cpp), so power = pi A L gives the same
+    power and the same mean intensity: 131.94 W for the red channel (colour (1, 0.95, 0.85)),
+    I = 10.50 W/sr. 4 pi^2 r^2 L = 142.12 W is the true sphere's; the 80 facets of the
+    subdivision-2 icosphere have 0.928 of its area, and the emissive scene emits pi A L."""
+    L = np.asarray(CAUSTIC_LIGHT["radiance"], float)
+    area = icosphere_area(CAUSTIC_LIGHT["radius"], CAUSTIC_LIGHT_SUBDIVISIONS)
+    power = math.pi * area * L.max()
+    return tuple(L / L.max()), power
+
+
+CAUSTIC_LIGHT_SUBDIVISIONS = 2
+
+
+def build_caustic(specular_only: bool = False, point: bool = False):
     """Glass sphere (r 0.5, IOR 1.5, 5120 flat facets) on a 4 x 4 m floor with a back wall;
-    one emissive icosphere of radius 3 cm; black world; box filter 1 px."""
+    one emissive icosphere of radius 3 cm (point=True: a radius-0 point light of the same
+    power at its centre); black world; box filter 1 px."""
     scene = new_empty_file()
-    scene.name = "CausticSpecularOnly" if specular_only else "Caustic"
+    scene.name = ("CausticPoint" if point else "Caustic") + ("SpecularOnly" if specular_only else "")
     set_output(scene, 256)
     build.black_world(scene)
     scene.cycles.pixel_filter_type = "BOX"
@@ -164,7 +197,15 @@ def build_caustic(specular_only: bool = False):
     v, t = triangles_from_quads(np.array(back, float), lambda c, n: n[1] < 0)
     mesh_object(scene, "BackWall", v, t, grey)
     icosphere_object(scene, "GlassSphere", (0.0, 0.0, 0.501), 0.5, 4, glass)
-    icosphere_object(scene, "Emitter", CAUSTIC_LIGHT["centre"], CAUSTIC_LIGHT["radius"], 2, light)
+    if point:
+        colour, power = caustic_point_light()
+        lamp = light_object(scene, "PointLight", "POINT", CAUSTIC_LIGHT["centre"], color=colour,
+                            energy=power, shadow_soft_size=0.0)
+        if hasattr(lamp.data, "use_soft_falloff"):
+            lamp.data.use_soft_falloff = False  # no effect at radius 0; stated anyway
+    else:
+        icosphere_object(scene, "Emitter", CAUSTIC_LIGHT["centre"], CAUSTIC_LIGHT["radius"],
+                         CAUSTIC_LIGHT_SUBDIVISIONS, light)
     loc = (0.0, -3.2, 2.2)
     camera_object(scene, "Camera", loc, look_at_euler(loc, (-0.2, 0.1, 0.3)), 40.0, 36.0)
     return scene
@@ -329,6 +370,8 @@ SCENES = {
     "interior": build_interior,
     "caustic": build_caustic,
     "caustic_specular_only": lambda: build_caustic(specular_only=True),
+    "caustic_point": lambda: build_caustic(point=True),
+    "caustic_point_specular_only": lambda: build_caustic(specular_only=True, point=True),
     "hard_tiny_light": build_hard_tiny_light,
     "hard_light_near_wall": build_hard_light_near_wall,
     "hard_degenerate": build_hard_degenerate,

@@ -115,3 +115,58 @@ def test_snapshots_take_the_first_image_past_each_budget():
 def test_memory_probe_reads_this_process():
     from bench import memory
     assert memory.tree_rss_kib(os.getpid()) > 10_000  # Python + NumPy: well over 10 MB
+
+
+def _floor_with_caustic():
+    """64x64 synthetic caustic scene: lit floor 0.5, a shadow 0.05 around the seed, a 3x4
+    caustic of 6.0 inside the shadow, and a bright highlight (20.0) elsewhere that must not
+    join the region."""
+    from bench import regions
+    img = np.full((64, 64, 3), 0.5)
+    img[30:50, 15:40] = 0.05  # shadow
+    img[39:42, 26:30] = 6.0  # caustic
+    img[10:13, 50:53] = 20.0  # a highlight far from the seed
+    truth = np.zeros((64, 64), bool)
+    truth[39:42, 26:30] = True
+    return img, truth, regions
+
+
+def test_caustic_region_is_the_bright_blob_at_the_seed():
+    img, truth, regions = _floor_with_caustic()
+    mask = regions.caustic_region("caustic", img)
+    assert mask.dtype == bool and (mask == truth).all()
+    assert regions.caustic_region("cornell_box", img) is None
+    # the same rule at 128x128: the seed scales with the image
+    big = img.repeat(2, 0).repeat(2, 1)
+    assert (regions.caustic_region("caustic", big) == truth.repeat(2, 0).repeat(2, 1)).all()
+    # a floor without a blob gives no region
+    flat = np.full((64, 64, 3), 0.5)
+    assert not regions.caustic_region("caustic", flat).any()
+
+
+def test_caustic_region_ignores_a_dim_halo_and_uses_the_lit_floor_level():
+    img, truth, regions = _floor_with_caustic()
+    img[38, 25:31] = 0.9  # brighter than the shadow but under 2x the lit floor's 0.5
+    assert (regions.caustic_region("caustic", img) == truth).all()
+    img[38, 25:31] = 1.2  # above 2x the lit floor, touching the caustic: joins it
+    grown = truth.copy()
+    grown[38, 25:31] = True
+    assert (regions.caustic_region("caustic", img) == grown).all()
+
+
+def test_region_metrics_relmse_and_mean_ratio():
+    img, truth, regions = _floor_with_caustic()
+    render = img.copy()
+    render[truth] *= 0.9  # 10 % dark in the caustic, exact elsewhere
+    render[0, 0] = np.nan  # outside the region: does not count
+    m = regions.region_metrics(render, img, truth)
+    assert m["pixels"] == truth.sum()
+    assert m["mean_ratio"] == pytest.approx(0.9, rel=1e-12)
+    assert m["relmse"] == pytest.approx(0.36 / (36 + metrics.EPS), rel=1e-12)
+    var = np.full(img.shape, 0.36)
+    m = regions.region_metrics(render, img, truth, var)
+    assert m["relmse_ref"] == pytest.approx(0.36 / (36 + metrics.EPS), rel=1e-12)
+    assert m["relmse_corrected"] == pytest.approx(0.0, abs=1e-15)
+    # non-finite pixels inside the region count as 0
+    render[39, 26] = np.inf
+    assert regions.region_metrics(render, img, truth)["mean_ratio"] < 0.9
