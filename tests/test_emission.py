@@ -137,17 +137,6 @@ def _pdf_dir(em, light, o=None):
     return f
 
 
-def _disk_fit(q, normal, radius, density_scale=1.0):
-    """Points q (N,3) relative to a disk's centre in its plane: (rho^2 / radius^2, angle) uniform."""
-    t, b, n = _frame(normal) if np.ndim(normal) == 1 else (None, None, None)
-    x, y = q @ t, q @ b
-    rho2 = (x * x + y * y) / radius**2
-    ang = np.mod(np.arctan2(y, x), 2 * np.pi)
-    edges_r, edges_a = np.linspace(0, 1, 11), np.linspace(0, 2 * np.pi, 13)
-    observed = np.histogram2d(rho2, ang, bins=[edges_r, edges_a])[0]
-    return observed, expected_counts_2d(lambda r, a: density_scale / (2 * np.pi) + 0 * r, edges_r, edges_a, len(q))
-
-
 def case_rect_pos():
     ls = SCENES["rect"]()
     em = emitter(ls)
@@ -401,14 +390,7 @@ def test_chi2_emission(name):
 def test_chi2_has_power_against_a_linear_spot_ramp(monkeypatch):
     """Directions drawn from a linear ramp (density (mu - cos_half) / smooth on the ramp) while the
     pdf claims Cycles' smoothstep: the spot's direction fit rejects."""
-    def linear_ramp_cos(u, cos_half, smooth):
-        cos_start, _, _ = spot_mass(cos_half, smooth)
-        mass = (1 - cos_start) + 0.5 * smooth  # a linear ramp also integrates to smooth / 2
-        p_flat = (1 - cos_start) / mass
-        v = np.clip((u - p_flat) / (1 - p_flat), 0, 1)
-        return np.where(u < p_flat, 1 - u / p_flat * (1 - cos_start), cos_half + smooth * np.sqrt(1 - v))
-
-    monkeypatch.setattr(emission, "sample_spot_cos", linear_ramp_cos)
+    monkeypatch.setattr(emission, "sample_spot_cos", _linear_ramp_cos)
     observed, expected = _spot_dir_case("spot", 8)
     assert chi2_test(observed, expected) < 1e-6
 
@@ -729,6 +711,8 @@ def _one_sided_triangles(ls, e):
 
 
 def _linear_ramp_cos(u, cos_half, smooth):
+    """A deliberately wrong spot sampler: density (mu - cos_half) / smooth on the ramp (a linear
+    ramp integrates to smooth / 2 like the smoothstep, so only the shape is wrong)."""
     cos_start, _, _ = spot_mass(cos_half, smooth)
     mass = (1 - cos_start) + 0.5 * smooth
     p_flat = (1 - cos_start) / mass
