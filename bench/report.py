@@ -175,6 +175,148 @@ def plot(name, sc, path, eps_text=EPS_TEXT):
     plt.close(fig)
 
 
+def _label(rname):
+    return rname.replace("ember:", "")
+
+
+def pivot_table(name, sc, key="relmse_corrected", region=None):
+    """Error against time at a glance: one row per budget, one column per renderer, the
+    value at that renderer's first image past the budget (its time in brackets)."""
+    runs = {r: v for r, v in sc.get("runs", {}).items() if "error" not in v}
+    if not runs:
+        return []
+    budgets = sorted({p["budget"] for v in runs.values() for p in v["points"] if p["budget"] is not None})
+    head = "| budget s | " + " | ".join(_label(r) for r in runs) + " |"
+    lines = [head, "|---:|" + "---:|" * len(runs)]
+    for b in budgets:
+        cells = []
+        for r, v in runs.items():
+            pts = region[r] if region is not None else v["points"]
+            p = next((q for q in pts if q["budget"] == b), None)
+            val = None if p is None else p.get(key, p["relmse"])
+            cells.append("-" if p is None else f"{_fmt(val, '.3e')} ({p['seconds']:.1f} s)")
+        lines.append(f"| {b:g} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _load_images(out_dir):
+    path = pathlib.Path(out_dir) / "images.npz"
+    if not path.exists():
+        return None
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
+
+
+def caustic_regions(results, out_dir):
+    """Region metrics of every saved snapshot of the caustic scenes (bench/regions.py), into
+    results['scenes'][name]['caustic_region']; needs OUT/images.npz and the references."""
+    images = _load_images(out_dir)
+    if images is None:
+        return
+    root = pathlib.Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(root))
+    from _bootstrap import load_ember
+    load_ember()
+    from ember.engine import imageio
+    from bench import regions
+    for name, sc in results["scenes"].items():
+        if name not in regions.CAUSTIC_SCENES or "runs" not in sc:
+            continue
+        ch, _ = imageio.read_exr(root / sc["reference"]["path"])
+        ref = np.stack([ch[c] for c in "RGB"], -1).astype(np.float64)
+        var = np.stack([ch[f"var.{c}"] for c in "RGB"], -1).astype(np.float64)
+        mask = regions.caustic_region(name, ref)
+        out = {"pixels": int(mask.sum()), "bbox": [*map(int, np.argwhere(mask).min(0)), *map(int, np.argwhere(mask).max(0))],
+               "reference_mean": float(ref[mask].mean()),
+               "reference_relmse": float(np.mean(var[mask] / (ref[mask] ** 2 + 1e-2))),
+               "reference_mean_rel_sigma": float(np.sqrt(var[mask].sum()) / ref[mask].sum()), "runs": {}}
+        for rname, run in sc["runs"].items():
+            if "error" in run:
+                continue
+            pts = run["points"] + run.get("equal_samples", [])
+            rows = []
+            for i, p in enumerate(pts):
+                img = images.get(f"{name}|{rname}|{i}")
+                if img is None:
+                    continue
+                m = regions.region_metrics(img, ref, mask, var)
+                rows.append(dict(budget=p["budget"], seconds=p["seconds"], samples=p["samples"],
+                                 equal_samples=i >= len(run["points"]), **m))
+            out["runs"][rname] = rows
+        sc["caustic_region"] = out
+
+
+def caustic_targets(results):
+    """Issue 9's caustic targets from the region metrics, as table lines."""
+    lines = []
+    for name, sc in results["scenes"].items():
+        reg = sc.get("caustic_region")
+        if not reg:
+            continue
+        runs = {r: [p for p in v if not p["equal_samples"]] for r, v in reg["runs"].items()}
+        lines += [f"### {name}: caustic region", "",
+                  f"{reg['pixels']} pixels (rows {reg['bbox'][0]}-{reg['bbox'][2]}, columns {reg['bbox'][1]}-{reg['bbox'][3]}), "
+                  f"bench/regions.py; the reference's mean there {reg['reference_mean']:.3f} "
+                  f"(its own 1-sigma uncertainty {reg['reference_mean_rel_sigma']:.2%}), its own expected relMSE there "
+                  f"{reg['reference_relmse']:.2e} (subtracted in 'relMSE - ref').", "",
+                  "relMSE in the region minus the reference's own (first image past each budget, its time in brackets):", ""]
+        lines += pivot_table(name, sc, "relmse_corrected", runs) + [""]
+        lines += ["Region mean / reference's region mean:", ""]
+        lines += pivot_table(name, sc, "mean_ratio", runs) + [""]
+        if name == "caustic":
+            lines += ["Target (issue 9): at equal time 8 s and 30 s, relMSE in the region of `photon` and `ppm` at most "
+                      "1/5 of Cycles' and at most 1/10 of Ember's path tracer (both read at the photon run's own time on "
+                      "their log-log line, slope -1 outside their range; relMSE less the reference's own):", "",
+                      "| integrator | budget | time s | relMSE - ref | raw relMSE | Cycles, same time | ratio (<= 0.2) | "
+                      "path, same time | ratio (<= 0.1) | met |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
+            for integ in [r for r in runs if r.startswith("ember:") and r != "ember:path"]:
+                for b in (8.0, 30.0):
+                    p = next((q for q in runs[integ] if q["budget"] == b), None)
+                    if p is None:
+                        continue
+                    e = p["relmse_corrected"]
+                    c = cycles_at(runs["cycles"], p["seconds"]) if "cycles" in runs else None
+                    pa = cycles_at(runs["ember:path"], p["seconds"]) if "ember:path" in runs else None
+                    rc, rp = _ratio(e, c), _ratio(e, pa)
+                    if e <= 0:
+                        rc = rp = 0.0
+                    met = rc is not None and rp is not None and rc <= 0.2 and rp <= 0.1
+                    lines.append(f"| {_label(integ)} | {b:g} | {p['seconds']:.1f} | {e:.3e} | {p['relmse']:.3e} | "
+                                 f"{_fmt(c, '.3e')} | {_fmt(rc, '.3f')} | {_fmt(pa, '.3e')} | {_fmt(rp, '.3f')} | "
+                                 f"{'met' if met else 'not met'} |")
+            lines.append("")
+        if name == "caustic_point":
+            lines += ["Target (issue 9): the point-light caustic within 3 % of the reference's caustic energy (region mean) "
+                      "in under 10 s; every image before 10 s:", "",
+                      "| renderer | budget | time s | region mean / reference | within 3 % |", "|---|---:|---:|---:|---|"]
+            for rname, pts in runs.items():
+                for p in pts:
+                    if p["seconds"] < 10.0:
+                        ok = abs(p["mean_ratio"] - 1) <= 0.03
+                        lines.append(f"| {_label(rname)} | {_fmt(p['budget'], 'g')} | {p['seconds']:.1f} | "
+                                     f"{p['mean_ratio']:.4f} | {'yes' if ok else 'no'} |")
+            lines.append("")
+    return lines
+
+
+def photon_stage_table(results):
+    lines = ["| scene | run | settings | stages s (all rounds) | figures |", "|---|---|---|---|---|"]
+    any_ = False
+    for name, sc in results["scenes"].items():
+        for rname, run in sc.get("runs", {}).items():
+            if not rname.startswith("ember:") or "error" in run or run.get("integrator", rname[6:]) == "path":
+                continue
+            any_ = True
+            st = run.get("settings", {})
+            keys = ("photons", "caustic_photons", "photon_k", "gather_rays", "radiance_photons") if run.get(
+                "integrator", "") != "ppm" else ("photons", "caustic_photons", "ppm_radius", "ppm_alpha")
+            sets = ", ".join(f"{k}={st[k]:.3g}" if isinstance(st.get(k), float) else f"{k}={st.get(k)}" for k in keys)
+            stages = ", ".join(f"{k} {v:.2f}" for k, v in run.get("stage_seconds", {}).items())
+            figs = "; ".join(run.get("counters", {}).values())
+            lines.append(f"| {name} | {_label(rname)} | {sets} | {stages} | {figs} |")
+    return lines + [""] if any_ else []
+
+
 def write(results, out_dir):
     out_dir = pathlib.Path(out_dir)
     run = results["run"]
@@ -186,6 +328,16 @@ def write(results, out_dir):
              f"seed {run['seed']}, one run per point. {EPS_TEXT}. Wall time {run.get('wall_s', 0):.0f} s.", ""]
     lines += [f"- {n}" for n in run["notes"]] + ([""] if run["notes"] else [])
     lines += ["## Headline: Ember's last image (time limit = the largest budget)", ""] + headline(results) + [""]
+    caustic_regions(results, out_dir)
+    if any("caustic_region" in sc for sc in results["scenes"].values()):
+        lines += ["## Caustic region (issue 9's targets)", ""] + caustic_targets(results)
+    lines += ["## Error against time (relMSE less the reference's own, first image past each budget)", ""]
+    for name, sc in results["scenes"].items():
+        if "runs" in sc:
+            lines += [f"### {name}", ""] + pivot_table(name, sc) + [""]
+    stages = photon_stage_table(results)
+    if stages:
+        lines += ["## Photon integrators: settings and time per stage (the error-ladder renders)", ""] + stages
     lines += machine_tables(results)
     lines += throughput_tables(results)
     lines += ["## Error against time, per scene", ""]
@@ -195,6 +347,9 @@ def write(results, out_dir):
             plot(name, sc, out_dir / f"{name}.png")
             lines += [f"![{name}]({name}.png)", ""]
     (out_dir / "report.md").write_text("\n".join(lines))
+    if any("caustic_region" in sc for sc in results["scenes"].values()):
+        (out_dir / "caustic_region.json").write_text(json.dumps(
+            {n: sc["caustic_region"] for n, sc in results["scenes"].items() if "caustic_region" in sc}, indent=1))
 
 
 if __name__ == "__main__":

@@ -99,7 +99,7 @@ def _reference(scene, resolution):
     ref = np.stack([ch[c] for c in "RGB"], axis=-1).astype(np.float64)
     var = np.stack([ch[f"var.{c}"] for c in "RGB"], axis=-1).astype(np.float64) if "var.R" in ch else None
     keep = ("renderer", "samples", "runs", "total_samples", "time_s", "blender_version", "mitsuba_version",
-            "agreement")
+            "agreement", "point_light_note")
     return {"path": str(path.relative_to(ROOT)), "image": ref, "variance": var,
             "header": {k: (v.decode() if isinstance(v, bytes) else v) for k, v in header.items() if k in keep}}
 
