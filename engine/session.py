@@ -29,7 +29,7 @@ from .film import Film
 from .integrators.base import Stage
 from .parallel import workers
 from .parallel.shared import Publisher
-from .scene import Scene
+from .scene import Scene, recentred
 from .tracer import Tracer
 from .validation import has_light, validate
 
@@ -87,6 +87,7 @@ class RenderStats:
 class RenderSession:
     def __init__(self, scene: Scene):
         validate(scene)
+        scene = recentred(scene)  # far from the world origin: render about the scene's centre
         t0 = time.perf_counter()
         self.warnings: list[str] = []
         if scene.settings.noise_target > 0 and not integrators.REGISTRY[scene.settings.integrator].noise_target:

@@ -413,9 +413,7 @@ def _after_export(proc, seconds=2.5):
 @pytest.mark.blender
 @pytest.mark.parametrize("sig, group, code, wait", [
     ("SIGINT", True, 130, 2.5), ("SIGTERM", False, 143, 2.5), ("SIGTERM", False, 143, 0.2),
-    pytest.param("SIGINT", True, 130, 0.2, marks=pytest.mark.xfail(
-        strict=False, reason="a terminal's Ctrl-C reaches worker processes still importing, before "
-                             "they ignore SIGINT (worker_main.py must ignore it first)")),
+    ("SIGINT", True, 130, 0.2),  # workers ignore SIGINT before their first import
 ])
 def test_signal_during_sampling_stops_fast_one_line_no_file_no_workers(bad_scenes, sig, group, code, wait):
     """wait 2.5: while sampling; wait 0.2: while the worker processes start."""
@@ -511,8 +509,6 @@ def test_sigkill_leaves_previous_file_and_no_workers(bad_scenes):
 
 
 @pytest.mark.blender
-@pytest.mark.xfail(strict=False, reason="orphaned workers finish their item and print BrokenPipeError "
-                                        "tracebacks (workers should die with the parent: PR_SET_PDEATHSIG)")
 def test_sigkill_orphaned_workers_exit_quietly(bad_scenes):
     err = _kill_while_sampling(bad_scenes)
     assert "Traceback" not in err, err

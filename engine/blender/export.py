@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 
 from ..errors import Cancelled, EmberError
-from ..scene import Lights, Scene
+from ..scene import Lights, Scene, recentred, scene_origin  # noqa: F401 (recentred: tests use it here)
 from .export_camera import export_camera
 from .export_light import export_light
 from .export_material import MaterialTable
@@ -116,53 +116,6 @@ def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
     out = Scene(mesh=mesh, materials=materials.materials(), lights=lights, world=world,
                 camera=camera, settings=settings)
     return recentred(out, origin, mesh_done=True), warn.finish()
-
-
-# ---- origin ---------------------------------------------------------------------------------
-# Beyond this distance from (0, 0, 0) a scene is rendered about its own centre: float32 (the
-# vertices, Embree's rays) has 1 mm steps at 1e4 and 6 cm at 1e6, and ray origins are pushed
-# off surfaces by a few of those steps, which moves light by centimetres to metres.
-RECENTRE_BEYOND = 1000.0
-
-
-def scene_origin(points, positions=(), camera=None) -> np.ndarray:
-    """The point to render about: the centre of the bounds of `points` (N,3) (the geometry's
-    bounding box corners), the lights' positions and the camera, rounded to whole metres (coordinates on a coarser grid stay exact), or 0
-    when that centre is within RECENTRE_BEYOND of the world origin."""
-    pts = [np.asarray(points, np.float64).reshape(-1, 3)]
-    pts += [np.asarray(p, np.float64).reshape(1, 3) for p in positions]
-    if camera is not None:
-        pts.append(np.asarray(camera.world_from_camera, np.float64)[:3, 3].reshape(1, 3))
-    pts = np.concatenate(pts)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    if len(pts) == 0:
-        return np.zeros(3)
-    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
-    return np.round(centre) if np.max(np.abs(centre)) > RECENTRE_BEYOND else np.zeros(3)
-
-
-def recentred(scene: Scene, origin=None, mesh_done: bool = False) -> Scene:
-    """The same scene with `origin` (default: the centre of its vertices' bounds, see
-    scene_origin) moved to (0, 0, 0): vertices, light positions and the camera shift
-    together, directions (world, suns, normals) do not, so the image is unchanged but for
-    float32 precision, which the shift restores far from the origin. mesh_done: the mesh
-    is already shifted (MeshCollector.build did it in float64)."""
-    if origin is None:
-        v = scene.mesh.vertices
-        v = v[np.all(np.isfinite(v), axis=1)] if len(v) else v
-        bounds = [v.min(axis=0), v.max(axis=0)] if len(v) else []
-        origin = scene_origin(np.array(bounds, np.float64).reshape(-1, 3), scene.lights.position, scene.camera)
-    origin = np.asarray(origin, np.float64)
-    if not np.any(origin):
-        return scene
-    mesh = scene.mesh
-    if not mesh_done:
-        mesh = dataclasses.replace(mesh, vertices=(mesh.vertices.astype(np.float64) - origin).astype(np.float32))
-    lights = dataclasses.replace(scene.lights, position=scene.lights.position - origin)
-    m = np.array(scene.camera.world_from_camera, np.float64)
-    m[:3, 3] -= origin
-    camera = dataclasses.replace(scene.camera, world_from_camera=m)
-    return dataclasses.replace(scene, mesh=mesh, lights=lights, camera=camera)
 
 
 def _names(names, limit=5) -> str:

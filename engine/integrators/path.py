@@ -52,7 +52,7 @@ class PathTracer:
         self.accel = accel
         self.lights = lights
         self.materials = scene.materials
-        self.emissive_material = scene.materials.emission.mean(axis=1) > 0
+        self.emissive_material = np.any(scene.materials.emission != 0, axis=1)  # negative emission too
         self.lambert_albedo = plain_lambert_albedo(scene.materials)
         self.flat_normal = flat_normals(scene.mesh)  # None unless every triangle is flat-shaded
         self.max_depth = scene.settings.max_depth
@@ -131,7 +131,7 @@ class PathTracer:
                 w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_b_mis, 1e-300))
                 contrib = at(beta) * f * scale(ls.Le, np.divide(cos_i * w, ls.pdf, out=np.zeros(len(active)),
                                                                  where=ls.valid))
-                test = np.flatnonzero(max3(contrib) > 0)
+                test = np.flatnonzero(np.any(contrib != 0, axis=1))  # negative lights subtract
                 if len(test):
                     rows = active[test]
                     o_shadow = offset_origin(take(hit_p, rows), towards(take(ng_f, rows), take(ls.wi, test)))

@@ -2,13 +2,32 @@
 
 Loads the package by file path under a private name (the parent may know it as `ember` or
 as Blender's `bl_ext.<repo>.ember`) and serves batch requests on stdin/stdout.
+
+Workers ignore SIGINT from the start (a terminal's Ctrl-C reaches the whole process group;
+the render process alone decides how to stop) and, on Linux, are killed with their parent.
 """
-import importlib.util
-import pathlib
-import sys
+import signal
+
+signal.signal(signal.SIGINT, signal.SIG_IGN)  # before any import: no KeyboardInterrupt tracebacks
+
+import importlib.util  # noqa: E402
+import pathlib  # noqa: E402
+import sys  # noqa: E402
+
+
+def _die_with_parent() -> None:
+    """PR_SET_PDEATHSIG: the kernel sends SIGKILL when the render process ends, however it ends."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # 1 = PR_SET_PDEATHSIG
+        except (OSError, AttributeError):  # pragma: no cover - not glibc
+            pass
 
 
 def main() -> None:
+    _die_with_parent()
     root = pathlib.Path(sys.argv[1])
     spec = importlib.util.spec_from_file_location("ember_worker", root / "__init__.py",
                                                   submodule_search_locations=[str(root)])
@@ -17,7 +36,12 @@ def main() -> None:
     spec.loader.exec_module(package)
     from ember_worker.engine.parallel.workers import serve
 
-    serve(sys.stdin.buffer, sys.stdout.buffer)
+    try:
+        serve(sys.stdin.buffer, sys.stdout.buffer)
+    except (BrokenPipeError, EOFError, ConnectionResetError):  # the render process is gone
+        import os
+
+        os._exit(0)
 
 
 if __name__ == "__main__":
