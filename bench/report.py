@@ -179,6 +179,15 @@ def _label(rname):
     return rname.replace("ember:", "")
 
 
+def at_budget(points, b, last):
+    """The first image past budget b; for the largest budget (`last`) the end image when no
+    progress update came after it (the run ended with its last batches)."""
+    p = next((q for q in points if q["budget"] == b), None)
+    if p is None and b == last:
+        p = next((q for q in points if q["budget"] is None), None)
+    return p
+
+
 def pivot_table(name, sc, key="relmse_corrected", region=None):
     """Error against time at a glance: one row per budget, one column per renderer, the
     value at that renderer's first image past the budget (its time in brackets)."""
@@ -192,7 +201,7 @@ def pivot_table(name, sc, key="relmse_corrected", region=None):
         cells = []
         for r, v in runs.items():
             pts = region[r] if region is not None else v["points"]
-            p = next((q for q in pts if q["budget"] == b), None)
+            p = at_budget(pts, b, budgets[-1])
             val = None if p is None else p.get(key, p["relmse"])
             cells.append("-" if p is None else f"{_fmt(val, '.3e')} ({p['seconds']:.1f} s)")
         lines.append(f"| {b:g} | " + " | ".join(cells) + " |")
@@ -271,7 +280,7 @@ def caustic_targets(results):
                       "path, same time | ratio (<= 0.1) | met |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
             for integ in [r for r in runs if r.startswith("ember:") and r != "ember:path"]:
                 for b in (8.0, 30.0):
-                    p = next((q for q in runs[integ] if q["budget"] == b), None)
+                    p = at_budget(runs[integ], b, 30.0)
                     if p is None:
                         continue
                     e = p["relmse_corrected"]
