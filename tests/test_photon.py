@@ -79,9 +79,12 @@ def test_furnace_radiance_from_the_global_map_converges():
         errors.append(np.sqrt(np.mean((img / 2.0 - 1.0) ** 2)))
     assert errors[1] < 0.7 * errors[0] and errors[2] < 0.7 * errors[1], errors
     assert errors[2] < 0.055  # measured 0.047: mostly the blur at the edges
-    bias = [render(scene, photons=photons, caustic_photons=0, samples=4)[0].mean() / 2.0 - 1.0
-            for photons in (20_000, 200_000)]
+    images = [render(scene, photons=photons, caustic_photons=0, samples=4)[0] for photons in (20_000, 200_000)]
+    bias = [img.mean() / 2.0 - 1.0 for img in images]
     assert abs(bias[1]) < 0.7 * abs(bias[0]) and abs(bias[1]) < 0.01, bias
+    # The 90-degree edges and corners (the image's border blocks) within 2 % (measured 1.2 %).
+    blocks = images[1].mean(axis=-1).reshape(4, 4, 4, 4).mean(axis=(1, 3)) / 2.0 - 1.0
+    assert np.abs(blocks).max() < 0.02, blocks
 
 
 def test_point_light_in_a_sphere_gives_the_analytic_radiance():
@@ -96,7 +99,6 @@ def test_point_light_in_a_sphere_gives_the_analytic_radiance():
     assert abs(glob.mean() - 1.0) < 0.01
 
 
-@pytest.mark.xfail(strict=True, reason="photon estimates do not test visibility yet")
 def test_no_light_leaks_through_a_thin_wall():
     """Two rooms share a wall 1 mm thick (its two faces are separate quads); a light in room
     A. Photons on A's face lie well within the search radius of points on B's face, but

@@ -39,6 +39,7 @@ PHOTON_BATCH = 1 << 16  # photon paths per work item
 RADIANCE_BATCH = 1 << 15  # radiance photons per work item
 RADIANCE_STRIDE = 4  # every 4th global photon becomes a radiance photon
 GLOBAL_RADIUS, CAUSTIC_RADIUS = 0.05, 0.0125  # x scene radius: Mitsuba 0.6's defaults
+VISIBILITY_LIFT = 1e-4  # x scene radius: photon-to-point segments start and end this far off the surfaces
 MIN_COUNT = 1  # the seed zeroes estimates below a minimum count; measured below
 # Random-number groups of a camera path (rng.Sampler): 0 the pixel filter, then per vertex
 # light (0-1 point, 2 choice) and BSDF (0-1 direction, 2 lobe); gather rays use domain GATHER
@@ -166,7 +167,8 @@ class PhotonIntegrator(Integrator):
             rows = rows * RADIANCE_STRIDE
             position = take(self.global_map.position, rows)
             normal = self.global_map.normal(rows)
-            E, _ = self.global_map.irradiance(position, normal, s.photon_k, self.r_global, min_count=MIN_COUNT)
+            E, _ = self.global_map.irradiance(position, normal, s.photon_k, self.r_global, min_count=MIN_COUNT,
+                                              accept=self.visible(position, normal, self.global_map))
             return {"position": position, "normal": normal, "E": E}
         layout = self.layout
         k = layout.paths(stage, item)
@@ -246,11 +248,13 @@ class PhotonIntegrator(Integrator):
         view = s.photon_view
         f_at = lambda pts: (lambda r, wi: bsdf.eval(wi, pts[r])[0])  # noqa: E731
         if view == "global":
-            Lg, _ = self.global_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_global, min_count=MIN_COUNT)
+            Lg, _ = self.global_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_global, min_count=MIN_COUNT,
+                                             accept=self.visible(at(p), at(ng_f), self.global_map))
             _accumulate(L, rows, bx * Lg)
             return
         if len(self.caustic_map):
-            Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_caustic, min_count=MIN_COUNT)
+            Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_caustic, min_count=MIN_COUNT,
+                                              accept=self.visible(at(p), at(ng_f), self.caustic_map))
             _accumulate(L, rows, bx * Lc)
         if view == "caustic":
             return
@@ -263,6 +267,19 @@ class PhotonIntegrator(Integrator):
                                domain=rng.GATHER)
         Lg = self._gather(gsampler, x[rep], p, ng_f, prim, bsdf, G)
         _accumulate(L, rows[rep], take(bx, rep) * Lg / G)
+
+    def visible(self, p, n, photons):
+        """accept(rows, j) for the photon estimates: photon j and query point p[rows] see each
+        other. Photons a thin wall away pass the search and the normal test (the floor on both
+        sides of a wall faces up); a segment between the two, lifted off their surfaces along
+        their normals, crosses the wall. Costs one shadow ray per candidate photon."""
+        lift = VISIBILITY_LIFT * self.radius
+
+        def accept(rows, j):
+            o = take(p, rows) + take(n, rows) * lift
+            t = take(photons.position, j).astype(np.float64) + photons.normal(j).astype(np.float64) * lift
+            return ~self.ctx.accel.occluded(o, t)
+        return accept
 
     def _direct_light(self, L, sampler, rows, x, bx, at, p, ng_f, ns, prim, bsdf, depth, G):
         """One light sample at the diffuse points x, weighted by the balance heuristic against
@@ -334,16 +351,19 @@ class PhotonIntegrator(Integrator):
             y = np.flatnonzero(stores)
             if len(y):
                 if self.radiance_photons is not None:
-                    E = self.radiance_photons.lookup(take(hp, y), take(ng_y, y), self.r_global)
+                    py, ny = take(hp, y), take(ng_y, y)
+                    E = self.radiance_photons.lookup(py, ny, self.r_global,
+                                                     accept=self.visible(py, ny, self.radiance_photons))
                     bsdf_y = make_closure(scene, self.lambert_albedo, mat[y], take(ns_y, y), take(ng_y, y), take(wo, y),
                                           hprim[y], take(bary, y))
                     Ly = E * bsdf_y.reflectance * (1.0 / np.pi)
                 else:
                     bsdf_y = make_closure(scene, self.lambert_albedo, mat[y], take(ns_y, y), take(ng_y, y), take(wo, y),
                                           hprim[y], take(bary, y))
-                    Ly, _ = self.global_map.radiance(take(hp, y), take(ng_y, y),
-                                                     lambda r, wi: bsdf_y.eval(wi, r)[0],
-                                                     s.photon_k, self.r_global, min_count=MIN_COUNT)
+                    py, ny = take(hp, y), take(ng_y, y)
+                    Ly, _ = self.global_map.radiance(py, ny, lambda r, wi: bsdf_y.eval(wi, r)[0],
+                                                     s.photon_k, self.r_global, min_count=MIN_COUNT,
+                                                     accept=self.visible(py, ny, self.global_map))
                 _accumulate(out, g[y], take(beta, y) * Ly)
             # Specular gather hits: follow them (no emission: that light is the caustic map's).
             c = np.flatnonzero(~stores)

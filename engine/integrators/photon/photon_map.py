@@ -296,7 +296,7 @@ class PhotonMap:
         ok = (dot(self.normal(j), nq) > COS_NORMAL_MIN) & (dot(wi, nq) > 0.0)
         return ok, wi
 
-    def radiance(self, p, n, f, k: int, r_max, kernel: str = "uniform", min_count: int = 8):
+    def radiance(self, p, n, f, k: int, r_max, kernel: str = "uniform", min_count: int = 8, accept=None):
         """Reflected radiance L (N,3) [W m^-2 sr^-1] at points p (N,3) with unit normals n (N,3)
         on the side being shaded (photons count only if they arrived on that side).
 
@@ -304,6 +304,8 @@ class PhotonMap:
         `rows` (indices into p) for photon directions wi (the caller binds wo); f=None gives the
         irradiance E [W m^-2]. k >= 2 nearest photons within r_max (scalar or (N,) [m]);
         kernel in KERNELS; L = 0 where fewer than min_count photons are accepted.
+        accept(rows (K,), j (K,)) -> (K,) bool, optional: a further test of photons j for query
+        points `rows` (e.g. visibility, so light does not leak through thin walls).
         Returns (L (N,3) float64, r (N,) float64 radius used [m]).
         """
         if k < 2:
@@ -329,6 +331,8 @@ class PhotonMap:
             rows, cols = np.nonzero(inside)
             j = idx[rows, cols]
             ok, wi = self._accept(j, take(n, rows + s))
+            if accept is not None and ok.any():
+                ok[ok] = accept(rows[ok] + s, j[ok])
             rows, cols, j, wi = rows[ok], cols[ok], j[ok], wi[ok]
             count = np.bincount(rows, minlength=e - s)
             r2_row = r2[rows]
@@ -347,12 +351,12 @@ class PhotonMap:
             L /= self.n_emitted
         return L, r_out
 
-    def irradiance(self, p, n, k: int, r_max, kernel: str = "uniform", min_count: int = 8):
+    def irradiance(self, p, n, k: int, r_max, kernel: str = "uniform", min_count: int = 8, accept=None):
         """Irradiance E (N,3) [W m^-2] from photons arriving on the side of n; see `radiance`.
         Returns (E (N,3), r (N,))."""
-        return self.radiance(p, n, None, k, r_max, kernel, min_count)
+        return self.radiance(p, n, None, k, r_max, kernel, min_count, accept)
 
-    def gather_radius(self, p, n, r, f=None):
+    def gather_radius(self, p, n, r, f=None, accept=None):
         """All accepted photons within a fixed radius r (N,) [m] of each point (progressive
         photon mapping). f as in `radiance`, f=None for flux alone.
 
@@ -383,6 +387,8 @@ class PhotonMap:
                 j = idx[rows, cols]
                 g = q[rows]
                 ok, wi = self._accept(j, take(n, g))
+                if accept is not None and ok.any():
+                    ok[ok] = accept(g[ok], j[ok])
                 g, j, wi = g[ok], j[ok], wi[ok]
                 contrib = take(self.flux, j).astype(np.float64)
                 if f is not None:
@@ -468,12 +474,18 @@ class RadiancePhotons:
     def nbytes(self) -> int:
         return sum(a.nbytes for a in self.arrays.values()) + self._index.nbytes
 
-    def lookup(self, p, n, r_max=np.inf, return_found: bool = False):
+    def normal(self, rows) -> np.ndarray:
+        """Unit normals (K,3) float32 of radiance photons `rows`."""
+        return decode_octahedral(take(self._normal, rows))
+
+    def lookup(self, p, n, r_max=np.inf, return_found: bool = False, accept=None):
         """Irradiance E (N,3) [W m^-2] at points p (N,3) with unit normals n (N,3): the E of the
         nearest radiance photon within r_max [m] (scalar or (N,)) whose normal agrees with n;
         0 where none does. One query of the LOOKUP_K nearest per point; the rare point whose
-        candidates all disagree (a corner) is asked again with 4x as many. With return_found,
-        also the (N,) bool mask of points that found one."""
+        candidates all disagree (a corner) is asked again with 4x as many. accept(rows (K,),
+        j (K,)) -> (K,) bool, optional: a further test of the chosen candidate (visibility);
+        a refused one passes the choice to the next candidate. With return_found, also the
+        (N,) bool mask of points that found one."""
         p = np.asarray(p).reshape(-1, 3)
         n = np.asarray(n).reshape(-1, 3)
         N = len(p)
@@ -496,6 +508,14 @@ class RadiancePhotons:
                 valid[rows[agree], cols[agree]] = True
                 first = np.argmax(valid, axis=1)  # the nearest agreeing candidate
                 hit = valid[np.arange(e - s), first]
+                check = np.flatnonzero(hit) if accept is not None else []
+                while len(check):  # test the choices; a refused one hands on to the next
+                    refused = check[~accept(q[check], idx[check, first[check]])]
+                    valid[refused, first[refused]] = False
+                    first[refused] = np.argmax(valid[refused], axis=1)
+                    hit[refused] = valid[refused, first[refused]]
+                    inside[refused, -1] = False  # refused candidates are no reason to ask again
+                    check = refused[hit[refused]]
                 out[q[hit]] = take(self.E, idx[np.arange(e - s), first][hit])
                 found[q[hit]] = True
                 unresolved.append(q[~hit & inside[:, -1]])  # all k inside: more may be within r_max

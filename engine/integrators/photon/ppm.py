@@ -139,6 +139,7 @@ class ProgressivePhotonIntegrator(PhotonIntegrator):
         u = rng.Sampler(s.seed, pixel[rows], sample[rows], s.pattern, domain=rng.GATHER)
         _accumulate(L, rows, bx * self._gather(u, x, p, ng_f, prim, bsdf, 1, emission_only=True))
         phi, count = self.pass_map.gather_radius(at(p), at(ng_f), self._radius_path[rows],
-                                                 lambda r, wi: bsdf.eval(wi, x[r])[0])
+                                                 lambda r, wi: bsdf.eval(wi, x[r])[0],
+                                                 accept=self.visible(at(p), at(ng_f), self.pass_map))
         self._phi[rows] += bx * phi
         self._count[rows] += count
