@@ -12,13 +12,22 @@ Options (each defaults to the scene's own setting):
     --time-limit S       stop after S seconds (0 = no limit)
     --noise-target X     stop once the estimated relative noise falls to X (0 = off)
     --seed K             random seed (>= 0)
-    --integrator NAME    e.g. path
+    --integrator NAME    path, photon (photon mapping) or ppm (progressive photon mapping)
     --pattern NAME       sobol (Owen-scrambled Sobol, the default) or random (independent)
     --resolution WxH     frame size in pixels (resolution percentage becomes 100 %)
     --max-depth N        longest path (1..1024)
     --reference REF.exr  print relMSE (eps 1e-2) against this linear image (R, G, B
                          channels, the render's size) as passes complete and at the end
     --no-progress        no progress bar on stderr
+Photon mapping (integrators photon and ppm; radii in metres, 0 = scene-relative default):
+    --photons N          photon paths for the global map (ppm: per pass)
+    --caustic-photons N  photon paths for the caustic map
+    --photon-k N         nearest photons per radiance estimate (>= 2)
+    --global-radius R, --caustic-radius R   largest search radii
+    --gather-rays N      final-gathering rays per camera sample
+    --radiance-photons on|off   gather rays read precomputed irradiance (Christensen 1999)
+    --photon-view NAME   full, or a debug view: global (the global map seen directly), caustic
+    --ppm-radius R, --ppm-alpha A   progressive photon mapping: first radius, radius shrink (0..1)
 
 The .blend is only read: settings are changed on the loaded copy in memory and nothing
 is saved. The image is written to a hidden temporary file beside the output, checked, and
@@ -108,6 +117,35 @@ def _max_depth(text):
     return value
 
 
+def _alpha(text):
+    value = _finite_at_least_zero("a number such as 0.67")(text)
+    if not 0 < value < 1:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 1 (exclusive), got {text!r}")
+    return value
+
+
+def _on_off(text):
+    if text.lower() not in ("on", "off"):
+        raise argparse.ArgumentTypeError(f"expected on or off, got {text!r}")
+    return text.lower() == "on"
+
+
+_metres = _finite_at_least_zero("a distance in metres")
+# Photon-mapping options: (option, scene.ember property, argparse type, help).
+PHOTON_OPTIONS = (
+    ("--photons", "photons", _non_negative_int, "photon paths for the global map (ppm: per pass)"),
+    ("--caustic-photons", "caustic_photons", _non_negative_int, "photon paths for the caustic map"),
+    ("--photon-k", "photon_k", _int_at_least(2), "nearest photons per radiance estimate"),
+    ("--global-radius", "global_radius", _metres, "largest global-map search radius (m, 0 = auto)"),
+    ("--caustic-radius", "caustic_radius", _metres, "largest caustic-map search radius (m, 0 = auto)"),
+    ("--gather-rays", "gather_rays", _non_negative_int, "final-gathering rays per camera sample"),
+    ("--radiance-photons", "radiance_photons", _on_off, "on|off: gather rays read radiance photons"),
+    ("--photon-view", "photon_view", str, "full, global or caustic (debug views)"),
+    ("--ppm-radius", "ppm_radius", _metres, "progressive photon mapping: first radius (m, 0 = auto)"),
+    ("--ppm-alpha", "ppm_alpha", _alpha, "progressive photon mapping: radius shrink, in (0, 1)"),
+)
+
+
 def _resolution(text):
     parts = text.lower().split("x")
     try:
@@ -134,6 +172,8 @@ def build_parser(blend_required: bool) -> argparse.ArgumentParser:
                    help="sample pattern: sobol (Owen-scrambled, the default) or random (independent)")
     p.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT in pixels")
     p.add_argument("--max-depth", type=_max_depth, help="longest light path (1..1024)")
+    for option, prop, kind, text in PHOTON_OPTIONS:
+        p.add_argument(option, dest=prop, type=kind, help=text)
     p.add_argument("--reference", help="linear EXR to print relMSE against while rendering")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p
@@ -382,6 +422,16 @@ def _apply_settings(scene, args) -> None:
         ember.max_depth = args.max_depth
     if args.pattern is not None:
         ember.pattern = args.pattern.upper()
+    for _, prop, _, _ in PHOTON_OPTIONS:
+        value = getattr(args, prop)
+        if value is None:
+            continue
+        if prop == "photon_view":
+            items = [i.identifier for i in type(ember).bl_rna.properties["photon_view"].enum_items]
+            if value.upper() not in items:
+                raise UsageError(f"unknown photon view {value!r} (choose one of: {', '.join(i.lower() for i in items)})")
+            value = value.upper()
+        setattr(ember, prop, value)
     if args.integrator is not None:
         items = {i.identifier: i for i in type(ember).bl_rna.properties["integrator"].enum_items}
         wanted = args.integrator.strip().upper()

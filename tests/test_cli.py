@@ -95,6 +95,10 @@ def _one_clear_line(stderr, *words):
     (["ok.blend", "--time-limit", "-1"], ["--time-limit"]),
     (["ok.blend", "--max-depth", "0"], ["--max-depth"]),
     (["ok.blend", "--pattern", "halton"], ["--pattern", "sobol", "random"]),
+    (["ok.blend", "--ppm-alpha", "1.5"], ["--ppm-alpha", "between 0 and 1"]),
+    (["ok.blend", "--photon-k", "1"], ["--photon-k", "at least 2"]),
+    (["ok.blend", "--radiance-photons", "maybe"], ["--radiance-photons", "on or off"]),
+    (["ok.blend", "--global-radius", "-1"], ["--global-radius"]),
     (["ok.blend", "-o", "no/such/dir/out.png"], ["output directory does not exist"]),
     (["ok.blend", "-o", "ok.blend/out.png"], ["output directory does not exist"]),
     (["ok.blend", "-o", "out.jpg"], [".png or .exr"]),
@@ -110,7 +114,8 @@ def test_bad_input_fast(scenes, args, words):
 @pytest.mark.parametrize("name, args, words", [
     ("nocam.blend", [], ["camera"]),
     ("empty.blend", [], ["nothing to render"]),
-    ("ok.blend", ["--integrator", "bidir"], ["integrator", "path"]),
+    ("ok.blend", ["--integrator", "bidir"], ["integrator", "path", "photon", "ppm"]),
+    ("ok.blend", ["--integrator", "photon", "--photon-view", "photons"], ["photon view", "global"]),
 ])
 def test_bad_scene_or_option(scenes, name, args, words):
     code, out, err = run(scenes, name, "-o", "x.png", *args)
@@ -190,3 +195,21 @@ def test_render_png(scenes):
     assert (img[..., 3] == 255).all()
     assert img[..., :3].max() > 20 and (img[..., :3] > 5).mean() > 0.3
     assert "2 samples" in out.strip().splitlines()[-1]
+
+
+@pytest.mark.parametrize("integrator, args, words", [
+    ("photon", ["--photons", "3000", "--caustic-photons", "0", "--gather-rays", "2", "--radiance-photons", "off",
+                "--photon-k", "10", "--global-radius", "0.5"], ["photons stored", "photons", "pixels"]),
+    ("photon", ["--photons", "3000", "--photon-view", "global"], ["photons stored"]),
+    ("ppm", ["--photons", "2000", "--ppm-radius", "0.3", "--ppm-alpha", "0.5"], ["2 passes", "mean radius"]),
+])
+def test_photon_integrators_from_the_command_line(scenes, integrator, args, words):
+    """The photon options reach the render (its summary names the stages and the photons)."""
+    code, out, err = run(scenes, "ok.blend", "-o", "ph.exr", "--samples", "2", "--resolution", "16x12",
+                         "--integrator", integrator, *args)
+    assert code == 0, err
+    assert all(w in out for w in words), out
+    from ember.engine import imageio
+    ch, _ = imageio.read_exr(scenes / "ph.exr")
+    img = np.stack([ch[c] for c in "RGB"], axis=-1)
+    assert np.isfinite(img).all() and img.mean() > 0
