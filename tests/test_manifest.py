@@ -26,7 +26,7 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 MANIFEST = ROOT / "blender_manifest.toml"
-PACKAGES = ("embreex", "openexr", "scipy", "tqdm")
+PACKAGES = ("embreex", "openexr", "scipy", "tqdm", "pykdtree")
 
 
 def _blender_ext_path() -> pathlib.Path:

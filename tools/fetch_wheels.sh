@@ -23,6 +23,13 @@ for pyver in "${pythons[@]}"; do
       --python-version="$pyver" --platform="$plat" -d wheels "${packages[@]}"
   done
 done
+# pykdtree has no macOS 13 arm64 wheel: its macOS 14 one there.
+for pyver in "${pythons[@]}"; do
+  for plat in manylinux_2_28_x86_64 win_amd64 macosx_14_0_arm64 macosx_13_0_x86_64; do
+    "$py" -m pip download --only-binary=:all: --no-deps --python-version="$pyver" --platform="$plat" \
+      -d wheels pykdtree==1.4.3
+  done
+done
 # tqdm needs colorama on Windows (pure Python, one wheel for all).
 "$py" -m pip download --only-binary=:all: --no-deps -d wheels colorama==0.4.6
 
