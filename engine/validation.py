@@ -150,9 +150,13 @@ def memory_estimate(scene: Scene, processes: int | None = None) -> dict:
     scene_bytes = (SCENE_BYTES_PER_TRIANGLE * scene.mesh.n_triangles
                    + (4 * image.nbytes if image is not None else 0)  # the image and its tables
                    + (texels.nbytes if texels is not None else 0))
-    per_process = batches + scene_bytes + PROCESS_BYTES
-    total = film + processes * per_process
-    return dict(film=film, batches=batches, scene=scene_bytes, processes=processes, total=total)
+    from .integrators import REGISTRY
+
+    published = REGISTRY[s.integrator].memory_estimate(scene) if s.integrator in REGISTRY else 0
+    per_process = batches + scene_bytes + PROCESS_BYTES + published  # every worker maps the published data
+    total = film + processes * per_process + published  # ... and the render process reduces it
+    return dict(film=film, batches=batches, scene=scene_bytes, published=published, processes=processes,
+                total=total)
 
 
 def check_memory(scene: Scene, available: int | None = None) -> None:
@@ -169,8 +173,9 @@ def check_memory(scene: Scene, available: int | None = None) -> None:
     raise EmberError(
         f"Not enough memory: a {s.width}x{s.height} render needs about {est['total'] / GIB:.1f} GiB "
         f"(film {est['film'] / GIB:.1f} GiB, {est['processes']} process(es) x "
-        f"{(est['batches'] + est['scene'] + PROCESS_BYTES) / GIB:.2f} GiB for batches and scene) "
-        f"but {available / GIB:.1f} GiB are available; lower the resolution or the batch size.")
+        f"{(est['batches'] + est['scene'] + est['published'] + PROCESS_BYTES) / GIB:.2f} GiB for batches, scene "
+        f"and photon maps) but {available / GIB:.1f} GiB are available; lower the resolution, the batch size "
+        f"or the photon counts.")
 
 
 def check_frame_memory(width: int, height: int, available: int | None = None) -> None:

@@ -207,3 +207,16 @@ def test_cancel_stops_during_the_photon_stage(integrator):
     stats = session.run(should_stop=lambda: time.perf_counter() - t0 > 0.5)
     assert stats.cancelled and stats.stopped_by == "cancel"
     assert list(stats.stage_seconds) == ["photons"] and stats.samples == 0
+
+
+def test_the_memory_estimate_counts_the_photon_maps():
+    """A render that would hold ten billion photons is refused before anything is traced."""
+    from ember.engine import validation
+    from ember.engine.errors import EmberError
+
+    scene = sphere_with_point_light(width=8, height=8, samples=1)
+    small = validation.memory_estimate(scene.replace(settings=scene.settings.replace(integrator="photon")))
+    assert small["published"] > 0
+    huge = scene.replace(settings=scene.settings.replace(integrator="photon", photons=2_000_000_000))
+    with pytest.raises(EmberError, match="photon"):
+        validation.check_memory(huge, available=24 * 2**30)

@@ -83,6 +83,11 @@ class Integrator:
         term), or None."""
         return None
 
+    @classmethod
+    def memory_estimate(cls, scene: Scene) -> int:
+        """Bytes of published data (photon maps, ...) one process holds at the peak."""
+        return 0
+
     def work_items(self) -> int:
         """About how many items the render has (worker processes pay off from a few)."""
         return self.layout.n_batches

@@ -40,6 +40,7 @@ RADIANCE_BATCH = 1 << 15  # radiance photons per work item
 RADIANCE_STRIDE = 4  # every 4th global photon becomes a radiance photon
 GLOBAL_RADIUS, CAUSTIC_RADIUS = 0.05, 0.0125  # x scene radius: Mitsuba 0.6's defaults
 VISIBILITY_LIFT = 1e-4  # x scene radius: photon-to-point segments start and end this far off the surfaces
+PHOTON_BYTES = 48  # a stored photon: 32 B packed + the k-NN index (tests/test_photon_map.py)
 MIN_COUNT = 1  # the seed zeroes estimates below a minimum count; measured below
 # Random-number groups of a camera path (rng.Sampler): 0 the pixel filter, then per vertex
 # light (0-1 point, 2 choice) and BSDF (0-1 direction, 2 lobe); gather rays use domain GATHER
@@ -86,6 +87,14 @@ class PhotonIntegrator(Integrator):
         self.n_global_photons = 0
 
     # --- render process -------------------------------------------------------------------
+    @classmethod
+    def memory_estimate(cls, scene) -> int:
+        """About 3 stored photons per global path (a closed room; open scenes store fewer) and
+        1 per 10 caustic paths, 48 B each with the index, twice (the reduced arrays and the
+        published copy)."""
+        s = scene.settings
+        return 2 * PHOTON_BYTES * (3 * s.photons + s.caustic_photons // 10)
+
     def work_items(self) -> int:
         return self.layout.n_batches + self.n_global_items + self.n_caustic_items
 

@@ -27,7 +27,7 @@ import numpy as np
 from ... import rng
 from ...vec import gatherer
 from ..base import Stage
-from .integrator import PHOTON_BATCH, PhotonIntegrator, _accumulate, _no_photons
+from .integrator import PHOTON_BATCH, PHOTON_BYTES, PhotonIntegrator, _accumulate, _no_photons
 from .photon_map import PhotonMap
 
 PPM_RADIUS = 0.01  # x scene radius: the first pass's radius when the setting is 0
@@ -56,6 +56,11 @@ class ProgressivePhotonIntegrator(PhotonIntegrator):
         self.passes_done = 0
 
     # --- render process -------------------------------------------------------------------
+    @classmethod
+    def memory_estimate(cls, scene) -> int:
+        """One pass's map (no caustic map), as PhotonIntegrator.memory_estimate."""
+        return 2 * PHOTON_BYTES * 3 * scene.settings.photons
+
     def work_items(self) -> int:
         return self.scene.settings.samples * (self.n_global_items + -(-self.layout.n_pixels // self.layout.batch_size))
 
