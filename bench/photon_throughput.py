@@ -16,8 +16,11 @@ runs its stages; the bench reads:
   worker does when the map is installed; the workers build theirs in parallel, so this is
   the wall time of the install too);
 - bytes per stored photon: PhotonMap.nbytes / len (packed arrays + the kd-tree);
-- worker start-up (RenderSession build and the pool) is reported apart: a render pays it once,
-  whatever the photon count.
+- whole session.run: everything above plus the worker processes' start-up, publishing the map
+  to them (shared memory) and the tiny 8x8 pixel pass: the conservative figure, and the one
+  the target is judged on.
+The index's bytes are PhotonMap's estimate (pykdtree: 4 B of permutation per photon plus
+48 B per node; 11-12 B/photon measured by malloc statistics, bench/photon_map_study.py).
 "N photons" are photon *paths* emitted (the setting); the number stored (one per diffuse hit,
 absorption included) is reported beside it, and the rate per stored photon too.
 """
@@ -99,12 +102,12 @@ def measure(scene, photons: int, seed: int = 0) -> dict:
 
 def table(rows) -> list[str]:
     lines = ["| scene | photon paths | stored | workers | trace s | store s | index s | total s | "
-             "M paths/s | M stored/s | B/photon (packed + index) | target < 5 s, <= 64 B | load |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|"]
+             "whole session.run s | M paths/s | M stored/s | B/photon (packed + index) | target < 5 s, <= 64 B | load |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|"]
     for name, r in rows.items():
-        ok = r["total_s"] < TARGET_SECONDS and r["bytes_per_photon"] <= TARGET_BYTES
+        ok = r["run_s"] < TARGET_SECONDS and r["bytes_per_photon"] <= TARGET_BYTES
         lines.append(f"| {name} | {r['photon_paths']:,} | {r['stored']:,} | {r['processes']} | {r['trace_s']:.2f} | "
-                     f"{r['store_s']:.2f} | {r['index_s']:.2f} | {r['total_s']:.2f} | {r['paths_per_s'] / 1e6:.2f} | "
+                     f"{r['store_s']:.2f} | {r['index_s']:.2f} | {r['total_s']:.2f} | {r['run_s']:.2f} | {r['paths_per_s'] / 1e6:.2f} | "
                      f"{r['stored_per_s'] / 1e6:.2f} | {r['bytes_per_photon']:.1f} ({r['bytes_packed_per_photon']:.0f} + "
                      f"{r['bytes_per_photon'] - r['bytes_packed_per_photon']:.1f}) | {'met' if ok else 'not met'} | "
                      f"{r['load'][0]:.1f}-{r['load'][1]:.1f} |")

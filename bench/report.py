@@ -220,7 +220,12 @@ def caustic_regions(results, out_dir):
     """Region metrics of every saved snapshot of the caustic scenes (bench/regions.py), into
     results['scenes'][name]['caustic_region']; needs OUT/images.npz and the references."""
     images = _load_images(out_dir)
-    if images is None:
+    if images is None:  # images.npz is not committed (5 MB): the metrics it gave are
+        saved = pathlib.Path(out_dir) / "caustic_region.json"
+        if saved.exists():
+            for name, reg in json.loads(saved.read_text()).items():
+                if name in results["scenes"]:
+                    results["scenes"][name]["caustic_region"] = reg
         return
     root = pathlib.Path(__file__).resolve().parents[1]
     sys.path.insert(0, str(root))
@@ -330,12 +335,24 @@ def write(results, out_dir):
     out_dir = pathlib.Path(out_dir)
     run = results["run"]
     m = run["machine"]
-    lines = [f"# Ember speed against error ({'quick' if run['quick'] else 'full'} run, {run['date']})", "",
+    lines = [f"# Ember speed against error ({out_dir.name} run, {run['date']})", "",
              f"{m['cpu']}, {m['cores']} cores (shared: 1-minute load average {run['load_start']:.1f} at the start, "
              f"{run.get('load_end', float('nan')):.1f} at the end); Blender {m['blender']}, numpy {m['numpy']}, "
              f"embreex {m['embreex']}, Python {m['python']}. Budgets {', '.join(f'{b:g}' for b in run['budgets'])} s, "
              f"seed {run['seed']}, one run per point. {EPS_TEXT}. Wall time {run.get('wall_s', 0):.0f} s.", ""]
     lines += [f"- {n}" for n in run["notes"]] + ([""] if run["notes"] else [])
+    if run.get("merged"):
+        lines += [f"Scenes {', '.join(run['merged']['scenes_kept'])} are from the earlier run of "
+                  f"{run['merged']['earlier_run']['date']} (load {run['merged']['earlier_run']['load_start']:.1f} at its "
+                  f"start); the others from this one.", ""]
+    notes = out_dir / "notes.md"
+    if notes.exists():  # hand-written reading of the numbers, kept across re-runs
+        lines += [notes.read_text().rstrip(), ""]
+    tp = out_dir / "photon_throughput.json"
+    if tp.exists():
+        from bench.photon_throughput import table
+        lines += ["## Photon throughput (bench/photon_throughput.py: 1 M photon paths, 2 cores)", ""]
+        lines += table(json.loads(tp.read_text())["best"]) + [""]
     lines += ["## Headline: Ember's last image (time limit = the largest budget)", ""] + headline(results) + [""]
     caustic_regions(results, out_dir)
     if any("caustic_region" in sc for sc in results["scenes"].values()):
@@ -362,6 +379,7 @@ def write(results, out_dir):
 
 
 if __name__ == "__main__":
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
     folder = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "bench/results/quick")
     write(json.loads((folder / "results.json").read_text()), folder)
     print(f"wrote {folder}/report.md")
