@@ -345,6 +345,10 @@ def write(results, out_dir):
         lines += [f"Scenes {', '.join(run['merged']['scenes_kept'])} are from the earlier run of "
                   f"{run['merged']['earlier_run']['date']} (load {run['merged']['earlier_run']['load_start']:.1f} at its "
                   f"start); the others from this one.", ""]
+    for a in run.get("added", []):
+        lines += [f"Added on {a['date']} (load {a['load_start']:.1f}-{a.get('load_end', float('nan')):.1f}), to "
+                  f"{', '.join(a['scenes'])}: {', '.join(a['variants'] + a['integrators'])} (labelled rows, "
+                  "not the defaults).", ""]
     notes = out_dir / "notes.md"
     if notes.exists():  # hand-written reading of the numbers, kept across re-runs
         lines += [notes.read_text().rstrip(), ""]

@@ -68,6 +68,10 @@ def parse_args(argv):
     ap.add_argument("--out", help="output folder")
     ap.add_argument("--merge", action="store_true",
                     help="keep the scenes of an existing OUT/results.json that this run does not measure")
+    ap.add_argument("--add-runs", action="store_true",
+                    help="with --merge: add this run's renders to the scenes already there (same-named "
+                         "runs replaced) instead of replacing those scenes; e.g. a --variant with "
+                         "--integrators none --no-cycles")
     return ap.parse_args(argv)
 
 
@@ -302,6 +306,8 @@ def main(argv=None):
     ember.register()
     from ember.engine.integrators import NAMES as INTEGRATORS
     integrators = [i.strip() for i in args.integrators.split(",")] if args.integrators else list(INTEGRATORS)
+    if args.integrators == "none":
+        integrators = []
     unknown = sorted(set(integrators) - set(INTEGRATORS))
     if unknown:
         raise BenchError(f"unknown integrator(s) {', '.join(unknown)} (Ember has: {', '.join(INTEGRATORS)})")
@@ -319,20 +325,31 @@ def main(argv=None):
     old_images = {}
     if args.merge and (out_dir / "results.json").exists():
         old = json.loads((out_dir / "results.json").read_text())
-        measured = {bs.name for bs in scenes}
+        measured = set() if args.add_runs else {bs.name for bs in scenes}
         results["scenes"] = {k: v for k, v in old.get("scenes", {}).items() if k not in measured}
-        results["run"]["merged"] = {"earlier_run": old["run"], "scenes_kept": sorted(results["scenes"])}
+        results["run"] = dict(old["run"]) if args.add_runs else results["run"]
+        results["run"]["merged" if not args.add_runs else "added"] = (
+            {"earlier_run": old["run"], "scenes_kept": sorted(results["scenes"])} if not args.add_runs else
+            old["run"].get("added", []) + [{"date": datetime.datetime.now().isoformat(timespec="seconds"),
+                                            "variants": args.variant, "integrators": integrators,
+                                            "scenes": [bs.name for bs in scenes], "load_start": _load()}])
         if (out_dir / "images.npz").exists():
             with np.load(out_dir / "images.npz") as z:
                 old_images = {k: z[k] for k in z.files if k.split("|")[0] not in measured}
 
     def save():
         (out_dir / "results.json").write_text(json.dumps(results, indent=1))
-        np.savez_compressed(out_dir / "images.npz", **old_images, **images)
+        fresh = {"|".join(k.split("|")[:2]) for k in images}
+        kept = {k: v for k, v in old_images.items() if "|".join(k.split("|")[:2]) not in fresh}
+        np.savez_compressed(out_dir / "images.npz", **kept, **images)
 
     for bs in scenes:
         print(f"{bs.name}:", flush=True)
-        results["scenes"][bs.name] = bench_scene(bs, args, budgets, integrators, RESOLUTION, images)
+        new = bench_scene(bs, args, budgets, integrators, RESOLUTION, images)
+        if args.add_runs and "runs" in results["scenes"].get(bs.name, {}) and "runs" in new:
+            results["scenes"][bs.name]["runs"].update(new["runs"])
+        else:
+            results["scenes"][bs.name] = new
         if "skipped" in results["scenes"][bs.name]:
             print("  skipped:", results["scenes"][bs.name]["skipped"], flush=True)
         save()  # a long run keeps what it measured if a later step fails
@@ -342,13 +359,14 @@ def main(argv=None):
     if not args.no_memory:
         print("peak memory, cornell_box (render.py, 1 sample):", flush=True)
         results["memory"] = memory(args)
-    results["run"]["load_end"] = _load()
-    results["run"]["wall_s"] = time.perf_counter() - t_start
+    where = results["run"]["added"][-1] if args.add_runs and results["run"].get("added") else results["run"]
+    where["load_end"] = _load()
+    where["wall_s"] = time.perf_counter() - t_start
 
     from bench import report
     save()
     report.write(results, out_dir)
-    print(f"wrote {out_dir}/report.md, results.json and plots in {results['run']['wall_s']:.0f} s", flush=True)
+    print(f"wrote {out_dir}/report.md, results.json and plots in {where['wall_s']:.0f} s", flush=True)
     return 0
 
 

@@ -170,3 +170,12 @@ def test_region_metrics_relmse_and_mean_ratio():
     # non-finite pixels inside the region count as 0
     render[39, 26] = np.inf
     assert regions.region_metrics(render, img, truth)["mean_ratio"] < 0.9
+
+
+def test_variant_labels_parse_settings():
+    from bench import run
+    assert run.parse_variant("photon_no_rp=photon:radiance_photons=0") == ("photon_no_rp", "photon", {"radiance_photons": 0})
+    assert run.parse_variant("x=ppm:photons=50000,ppm_alpha=0.5") == ("x", "ppm", {"photons": 50000, "ppm_alpha": 0.5})
+    assert run.parse_variant("y=path") == ("y", "path", {})
+    with pytest.raises(run.BenchError):
+        run.parse_variant("no-label")
