@@ -288,7 +288,33 @@ def _light_cone_fit(ls, i, seed, cells=24):
     return observed, expected_counts_2d(density, s_edges, p_edges, N, order=32)  # edges cut cells
 
 
+def _sun_fit(seed, half_angle=0.2, cells=24):
+    """A sun of half angle 0.2 rad tilted off +z: NEE directions against the density sun_hit
+    reports for escaped rays, in (1 - cos) / (1 - cos_max) and azimuth around the sun's axis."""
+    from ember.engine.lights import shapes
+    z = np.array([0.3, -0.2, 1.0]) / np.linalg.norm([0.3, -0.2, 1.0])
+    sun = dict(kind=2, frame=_down(z), sun_half_angle=half_angle, Le=(2.0, 2.0, 2.0))
+    ls = _light_set(Lights.make([sun]))
+    rng = np.random.default_rng(seed)
+    s = ls.sample(np.tile(P0, (N, 1)), rng.random(N), rng.random((N, 2)))
+    assert s.valid.all() and not s.finite.any()
+    one_minus_max = 1.0 - np.cos(half_angle)
+    t, b, _ = _frame(z)
+    c = s.wi @ z
+    phi = np.mod(np.arctan2(s.wi @ b, s.wi @ t), 2 * np.pi)
+    s_edges, p_edges = np.linspace(0.0, 1.0, cells + 1), np.linspace(0.0, 2 * np.pi, cells + 1)
+    observed = np.histogram2d((1.0 - c) / one_minus_max, phi, bins=[s_edges, p_edges])[0]
+
+    def density(sv, pv):
+        d = _direction(1.0 - sv.ravel() * one_minus_max, pv.ravel(), z)
+        hit, _, pdf_dir = shapes.sun_hit(ls.lights, 0, d)
+        return (np.where(hit, pdf_dir, 0.0) * one_minus_max).reshape(sv.shape)
+
+    return observed, expected_counts_2d(density, s_edges, p_edges, N)
+
+
 LIGHT_CASES = {
+    "sun_with_angle": lambda: _sun_fit(28),
     "rect": lambda: _light_cone_fit(_light_set(Lights.make([RECT])), 0, 21),
     "disk": lambda: _light_cone_fit(_light_set(Lights.make([DISK])), 0, 22),
     "sphere": lambda: _light_cone_fit(_light_set(Lights.make([SPHERE])), 0, 23),
