@@ -58,3 +58,24 @@ def test_a_path_tracer_finds_the_caustic_only_as_fireflies(caustic):
     scene, reference, mask = caustic
     m = regions.region_metrics(_render(scene, integrator="path", samples=64, seed=1), reference, mask)
     assert m["relmse"] > 1.0, m  # 20x and more the photon maps' error at fewer samples
+
+
+@pytest.mark.slow
+def test_ppm_error_keeps_falling_with_passes(caustic):
+    """Issue 9: the log-log slope of relMSE against passes between 16 and 256 is steeper than
+    -0.5 (a fixed-radius photon map would flatten out at its bias)."""
+    scene, reference, mask = caustic
+    from bench.metrics import rel_mse
+
+    errors = {}
+
+    def update(progress):
+        if progress.pass_completed and progress.samples_done in (16, 256):
+            errors[progress.samples_done] = rel_mse(progress.film.mean(), reference)
+
+    session = RenderSession(scene.replace(settings=scene.settings.replace(integrator="ppm", samples=256,
+                                                                          photons=100_000, seed=3)))
+    session.run(on_update=update)
+    slope = np.log(errors[256] / errors[16]) / np.log(256 / 16)
+    print(f"ppm relMSE {errors[16]:.4e} at 16 passes, {errors[256]:.4e} at 256: slope {slope:.3f}")
+    assert slope < -0.5, (errors, slope)
