@@ -145,6 +145,32 @@ def machine_tables(results):
     return lines
 
 
+def plot_region(name, reg, path):
+    """Caustic region: relMSE (raw) and the region's mean ratio against time."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 4.2))
+    for rname, pts in reg["runs"].items():
+        pts = sorted((p for p in pts if not p["equal_samples"]), key=lambda p: p["seconds"])
+        t = [p["seconds"] for p in pts]
+        style = "o-" if rname.startswith("ember") else "s--"
+        ax.loglog(t, [max(p["relmse"], 1e-6) for p in pts], style, label=_label(rname))
+        bx.semilogx(t, [p["mean_ratio"] for p in pts], style, label=_label(rname))
+    ax.axhline(reg["reference_relmse"], color="grey", lw=0.8, ls=":", label="reference's own relMSE")
+    ax.set_title(f"{name}: relMSE in the caustic region ({reg['pixels']} px)", fontsize=8)
+    bx.axhspan(0.97, 1.03, color="lightgreen", alpha=0.4, label="within 3 %")
+    bx.set_ylim(0.8, 1.2)
+    bx.set_title(f"{name}: region mean / reference's (clipped to 0.8-1.2)", fontsize=8)
+    for a in (ax, bx):
+        a.set_xlabel("seconds to the image")
+        a.grid(True, which="both", lw=0.3)
+        a.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
 def plot(name, sc, path, eps_text=EPS_TEXT):
     import matplotlib
     matplotlib.use("Agg")
@@ -260,7 +286,7 @@ def caustic_regions(results, out_dir):
         sc["caustic_region"] = out
 
 
-def caustic_targets(results):
+def caustic_targets(results, out_dir=None):
     """Issue 9's caustic targets from the region metrics, as table lines."""
     lines = []
     for name, sc in results["scenes"].items():
@@ -277,6 +303,9 @@ def caustic_targets(results):
         lines += pivot_table(name, sc, "relmse_corrected", runs) + [""]
         lines += ["Region mean / reference's region mean:", ""]
         lines += pivot_table(name, sc, "mean_ratio", runs) + [""]
+        if out_dir is not None:
+            plot_region(name, reg, pathlib.Path(out_dir) / f"{name}_region.png")
+            lines += [f"![{name} caustic region]({name}_region.png)", ""]
         if name == "caustic":
             lines += ["Target (issue 9): at equal time 8 s and 30 s, relMSE in the region of `photon` and `ppm` at most "
                       "1/5 of Cycles' and at most 1/10 of Ember's path tracer (both read at the photon run's own time on "
@@ -360,7 +389,7 @@ def write(results, out_dir):
     lines += ["## Headline: Ember's last image (time limit = the largest budget)", ""] + headline(results) + [""]
     caustic_regions(results, out_dir)
     if any("caustic_region" in sc for sc in results["scenes"].values()):
-        lines += ["## Caustic region (issue 9's targets)", ""] + caustic_targets(results)
+        lines += ["## Caustic region (issue 9's targets)", ""] + caustic_targets(results, out_dir)
     lines += ["## Error against time (relMSE less the reference's own, first image past each budget)", ""]
     for name, sc in results["scenes"].items():
         if "runs" in sc:
