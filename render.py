@@ -249,6 +249,8 @@ class _Follower:
             self.bar_layer = layer
         self.bar.n = progress.samples_done
         postfix = f"{progress.rays_per_second / 1e6:.2f} M rays/s"
+        if getattr(progress, "stage", "pixels") != "pixels":
+            postfix = f"{progress.stage}, {postfix}"
         if error is not None:
             postfix += f", relMSE {error:.3e}"
         self.bar.set_postfix_str(postfix, refresh=False)

@@ -525,3 +525,10 @@ def test_panels_opt_in_and_out_and_reregister():
         assert 'EMBER' in _engines(name), name
     register()  # registering twice is harmless
     assert hasattr(bpy.types.Scene, "ember")
+
+
+def test_status_text_names_the_stage():
+    from types import SimpleNamespace as NS
+    p = NS(samples_done=0, samples_target=16, elapsed=1.5, rays_per_second=2e6, noise=None, stage="photons")
+    assert final.stats_text(p).startswith("Photons | Sample 0/16 | 1.5 s")
+    assert final.stats_text(NS(**{**vars(p), "stage": "pixels"})).startswith("Sample 0/16")

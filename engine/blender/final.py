@@ -104,7 +104,9 @@ def _fmt_rate(rays_per_second) -> str:
 
 def stats_text(progress) -> str:
     """'Sample 12/64 | 3.2 s | 1.1 M rays/s' (+ noise when the session estimates it)."""
-    text = (f"Sample {progress.samples_done}/{progress.samples_target} | "
+    stage = getattr(progress, "stage", "pixels")
+    where = "" if stage == "pixels" else f"{stage.capitalize()} | "  # e.g. "Photons | " while tracing them
+    text = (f"{where}Sample {progress.samples_done}/{progress.samples_target} | "
             f"{progress.elapsed:.1f} s | {_fmt_rate(progress.rays_per_second)}")
     noise = getattr(progress, "noise", None)
     if noise is not None and noise == noise and noise != float("inf"):
