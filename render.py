@@ -26,7 +26,8 @@ Photon mapping (integrators photon and ppm; radii in metres, 0 = scene-relative 
     --global-radius R, --caustic-radius R   largest search radii
     --gather-rays N      final-gathering rays per camera sample
     --radiance-photons on|off   gather rays read precomputed irradiance (Christensen 1999)
-    --photon-view NAME   full, or a debug view: global (the global map seen directly), caustic
+    --photon-view NAME   full, or a debug view: global (the global map seen directly), caustic,
+                         positions (where photons landed)
     --ppm-radius R, --ppm-alpha A   progressive photon mapping: first radius, radius shrink (0..1)
 
 The .blend is only read: settings are changed on the loaded copy in memory and nothing
@@ -140,7 +141,7 @@ PHOTON_OPTIONS = (
     ("--caustic-radius", "caustic_radius", _metres, "largest caustic-map search radius (m, 0 = auto)"),
     ("--gather-rays", "gather_rays", _non_negative_int, "final-gathering rays per camera sample"),
     ("--radiance-photons", "radiance_photons", _on_off, "on|off: gather rays read radiance photons"),
-    ("--photon-view", "photon_view", str, "full, global or caustic (debug views)"),
+    ("--photon-view", "photon_view", str, "full, or a debug view: global, caustic, positions"),
     ("--ppm-radius", "ppm_radius", _metres, "progressive photon mapping: first radius (m, 0 = auto)"),
     ("--ppm-alpha", "ppm_alpha", _alpha, "progressive photon mapping: radius shrink, in (0, 1)"),
 )

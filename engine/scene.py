@@ -419,7 +419,7 @@ class Settings:
     caustic_radius: float = 0.0  # maximum search radius of the caustic map (m)
     gather_rays: int = 16  # final-gathering rays per camera sample
     radiance_photons: bool = True  # gather rays read precomputed irradiance (Christensen 1999)
-    photon_view: str = "full"  # "full", or a debug view: "global", "caustic"
+    photon_view: str = "full"  # "full", or a debug view: "global", "caustic", "positions"
     ppm_radius: float = 0.0  # progressive photon mapping: first radius (m), 0 = 1 % of the scene radius
     ppm_alpha: float = 2.0 / 3.0  # share of a pass's photons kept (radius shrink), in (0, 1)
 

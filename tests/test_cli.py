@@ -201,6 +201,7 @@ def test_render_png(scenes):
     ("photon", ["--photons", "3000", "--caustic-photons", "0", "--gather-rays", "2", "--radiance-photons", "off",
                 "--photon-k", "10", "--global-radius", "0.5"], ["photons stored", "photons", "pixels"]),
     ("photon", ["--photons", "3000", "--photon-view", "global"], ["photons stored"]),
+    ("photon", ["--photons", "30000", "--photon-view", "positions"], ["photons stored"]),
     ("ppm", ["--photons", "2000", "--ppm-radius", "0.3", "--ppm-alpha", "0.5"], ["2 passes", "mean radius"]),
 ])
 def test_photon_integrators_from_the_command_line(scenes, integrator, args, words):

@@ -22,6 +22,7 @@ PHOTON_VIEW_ITEMS = [
     ('FULL', "Full", "The rendered image"),
     ('GLOBAL', "Global Map", "Debug: the global photon map's radiance estimate seen directly"),
     ('CAUSTIC', "Caustic Map", "Debug: the caustic map's radiance estimate alone"),
+    ('POSITIONS', "Photon Positions", "Debug: where photons landed (white), caustic photons in orange"),
 ]
 
 

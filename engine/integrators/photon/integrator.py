@@ -41,6 +41,8 @@ RADIANCE_STRIDE = 4  # every 4th global photon becomes a radiance photon
 GLOBAL_RADIUS, CAUSTIC_RADIUS = 0.05, 0.0125  # x scene radius: Mitsuba 0.6's defaults
 VISIBILITY_LIFT = 1e-4  # x scene radius: photon-to-point segments start and end this far off the surfaces
 PHOTON_BYTES = 48  # a stored photon: 32 B packed + the k-NN index (tests/test_photon_map.py)
+POSITIONS_RADIUS = 0.002  # x scene radius: a photon shows as a dot this size in the "positions" view
+_CAUSTIC_COLOUR = np.array([1.0, 0.5, 0.1])
 MIN_COUNT = 1  # the seed zeroes estimates below a minimum count; measured below
 # Random-number groups of a camera path (rng.Sampler): 0 the pixel filter, then per vertex
 # light (0-1 point, 2 choice) and BSDF (0-1 direction, 2 lobe); gather rays use domain GATHER
@@ -256,6 +258,13 @@ class PhotonIntegrator(Integrator):
         G = max(s.gather_rays, 0)
         view = s.photon_view
         f_at = lambda pts: (lambda r, wi: bsdf.eval(wi, pts[r])[0])  # noqa: E731
+        if view == "positions":  # debug: where photons landed, caustic ones in orange
+            r = np.full(len(x), POSITIONS_RADIUS * self.radius)
+            near = lambda m: m.gather_radius(at(p), at(ng_f), r)[1] > 0 if len(m) else np.zeros(len(x), bool)  # noqa: E731
+            caustic, seen = near(self.caustic_map), near(self.global_map)
+            colour = np.where(caustic[:, None], _CAUSTIC_COLOUR, np.where(seen[:, None], 1.0, 0.0))
+            _accumulate(L, rows, colour)
+            return
         if view == "global":
             Lg, _ = self.global_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_global, min_count=MIN_COUNT,
                                              accept=self.visible(at(p), at(ng_f), self.global_map))
