@@ -1,6 +1,7 @@
 """Caustic reference: Mitsuba 3's particle tracer where a path tracer is too noisy.
 
-    python bench/mitsuba_reference.py [--resolution 64] [--out FILE]    (or bench/references.py)
+    python bench/mitsuba_reference.py [--scene caustic|caustic_point] [--resolution 64] [--out FILE]
+    (or bench/references.py --only NAME)
 
 Light from a small emitter through a glass sphere onto a diffuse floor (L S+ D E) is found
 by a path tracer only when a BSDF-sampled ray happens to refract onto the emitter; a
@@ -20,6 +21,12 @@ pixel to 3 sigma: every diffuse point also sees the emitter reflected and refrac
 sphere (L S+ D paths), which Cycles finds only by rare BSDF-sampled hits, so it mostly
 misses that light and its variance estimate does not show it. The header records both
 parts' samples and times, the versions and the agreement.
+
+caustic_point (`--scene caustic_point`): a Blender point light of radius 0 becomes Mitsuba's
+`point` emitter with I = strength / (4 pi) W/sr, Cycles' convention. Cycles cannot find
+L S+ D paths from it at all: the header records plain Cycles' mean in the caustic region
+(bench/regions.py; 0.5 % of the reference's), and the reference's own Cycles part (camera
+sees the glass) lacks the caustic seen through the sphere for the same reason.
 
 Not used: Cycles' MNEE caustics, which on a glass sphere under a small sphere light were
 measured to carry about a quarter of the caustic's energy.
