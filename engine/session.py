@@ -151,6 +151,8 @@ class RenderSession:
                         version += 1
                         backend.install(version, arrays, publisher)
                     self.film.overlay = self.integrator.overlay()
+                    if stage.film and stage.publish:
+                        run.report(stage, pass_completed=True)
                 round_ += 1
         finally:
             backend.close(kill=run.cancelled or run.ended)
@@ -247,7 +249,9 @@ class _Run:
                 self.rays += item_rays
                 self.embree_seconds += item_embree
                 next_done += 1
-            pass_completed = self.samples_done() > before
+            # A film stage that also publishes (ppm) completes its pass only once reduced:
+            # RenderSession.run reports it then, with the film's overlay up to date.
+            pass_completed = self.samples_done() > before and not stage.publish
             # The estimate costs a pass over the film: every pass when it can stop the
             # render, else at most once per NOISE_INTERVAL (it is only shown).
             if pass_completed and (s.noise_target > 0 or time.perf_counter() - self.noise_time >= NOISE_INTERVAL):

@@ -220,3 +220,19 @@ def test_the_memory_estimate_counts_the_photon_maps():
     huge = scene.replace(settings=scene.settings.replace(integrator="photon", photons=2_000_000_000))
     with pytest.raises(EmberError, match="photon"):
         validation.check_memory(huge, available=24 * 2**30)
+
+
+def test_ppm_reports_a_pass_only_with_its_photon_term():
+    """Every image a listener sees at a completed ppm pass already holds that pass's photon
+    term (the film's overlay), so the first pass's image is not missing its indirect light."""
+    scene = sphere_with_point_light(width=8, height=8, samples=3)
+    seen = []
+
+    def update(progress):
+        if progress.pass_completed:
+            seen.append((progress.samples_done, progress.film.mean().mean()))
+
+    s = scene.replace(settings=scene.settings.replace(integrator="ppm", photons=20_000))
+    RenderSession(s).run(on_update=update)
+    assert [n for n, _ in seen] == [1, 2, 3]
+    assert all(abs(mean - 1.0) < 0.15 for _, mean in seen), seen  # direct alone would be 0.5

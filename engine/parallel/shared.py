@@ -72,10 +72,15 @@ class Publisher:
 
 
 def _unlink(shm) -> None:
+    """Unlink first (the name goes; mappings stay valid), then unmap: a view still alive in
+    this process makes close() fail, which must not keep the segment from being unlinked."""
+    try:
+        shm.unlink()
+    except FileNotFoundError:  # pragma: no cover - already gone
+        pass
     try:
         shm.close()
-        shm.unlink()
-    except (FileNotFoundError, BufferError):  # pragma: no cover - already gone / views alive
+    except BufferError:  # pragma: no cover - a view is alive: unmapped at exit
         pass
 
 
