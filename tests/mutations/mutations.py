@@ -113,7 +113,7 @@ MUTATIONS = [
          file="engine/integrators/photon/tracing.py",
          old="w = bs.weight if bs.refraction_eta2 is None else scale(bs.weight, bs.refraction_eta2)",
          new="w = bs.weight",
-         tests=["tests/test_photon_caustic.py"]),
+         tests=["tests/test_photon.py", "tests/test_photon_caustic.py"]),
     dict(name="photon_estimate_ignores_visibility",
          note="photon estimates accept photons behind a thin wall",
          file="engine/integrators/photon/photon_map.py",
