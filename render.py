@@ -23,6 +23,7 @@ Photon mapping (integrators photon and ppm; radii in metres, 0 = scene-relative 
     --photons N          photon paths for the global map (ppm: per pass)
     --caustic-photons N  photon paths for the caustic map
     --photon-k N         nearest photons per radiance estimate (>= 2)
+    --photon-kernel NAME uniform, cone or epanechnikov
     --global-radius R, --caustic-radius R   largest search radii
     --gather-rays N      final-gathering rays per camera sample
     --radiance-photons on|off   gather rays read precomputed irradiance (Christensen 1999)
@@ -142,6 +143,7 @@ PHOTON_OPTIONS = (
     ("--gather-rays", "gather_rays", _non_negative_int, "final-gathering rays per camera sample"),
     ("--radiance-photons", "radiance_photons", _on_off, "on|off: gather rays read radiance photons"),
     ("--photon-view", "photon_view", str, "full, or a debug view: global, caustic, positions"),
+    ("--photon-kernel", "photon_kernel", str, "uniform, cone or epanechnikov"),
     ("--ppm-radius", "ppm_radius", _metres, "progressive photon mapping: first radius (m, 0 = auto)"),
     ("--ppm-alpha", "ppm_alpha", _alpha, "progressive photon mapping: radius shrink, in (0, 1)"),
 )
@@ -429,10 +431,11 @@ def _apply_settings(scene, args) -> None:
         value = getattr(args, prop)
         if value is None:
             continue
-        if prop == "photon_view":
-            items = [i.identifier for i in type(ember).bl_rna.properties["photon_view"].enum_items]
+        if prop in ("photon_view", "photon_kernel"):
+            items = [i.identifier for i in type(ember).bl_rna.properties[prop].enum_items]
             if value.upper() not in items:
-                raise UsageError(f"unknown photon view {value!r} (choose one of: {', '.join(i.lower() for i in items)})")
+                what = prop.replace("_", " ")
+                raise UsageError(f"unknown {what} {value!r} (choose one of: {', '.join(i.lower() for i in items)})")
             value = value.upper()
         setattr(ember, prop, value)
     if args.integrator is not None:

@@ -415,6 +415,7 @@ class Settings:
     photons: int = 200_000  # photon paths emitted for the global map
     caustic_photons: int = 1_000_000  # photon paths emitted for the caustic map
     photon_k: int = 50  # nearest photons in a radiance estimate
+    photon_kernel: str = "uniform"  # radiance-estimate kernel: "uniform", "cone", "epanechnikov"
     global_radius: float = 0.0  # maximum search radius of the global map (m)
     caustic_radius: float = 0.0  # maximum search radius of the caustic map (m)
     gather_rays: int = 16  # final-gathering rays per camera sample

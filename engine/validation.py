@@ -12,6 +12,7 @@ import numpy as np
 from .errors import EmberError
 from .rng import PATTERNS
 from .integrators import NAMES as INTEGRATORS
+from .integrators.photon.photon_map import KERNELS
 from .scene import FILTERS, STRATEGIES, Scene
 
 
@@ -212,6 +213,8 @@ def photon_problems(s) -> list[str]:
         problems.append(f"progressive photon alpha must be in (0, 1) (got {s.ppm_alpha})")
     if s.photon_k < 2:
         problems.append(f"photons per estimate must be at least 2 (got {s.photon_k})")
+    if s.photon_kernel not in KERNELS:
+        problems.append(f"unknown photon kernel {s.photon_kernel!r} (use one of {', '.join(KERNELS)})")
     if s.photon_view not in PHOTON_VIEWS:
         problems.append(f"unknown photon view {s.photon_view!r} (use one of {', '.join(PHOTON_VIEWS)})")
     return problems

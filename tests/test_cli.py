@@ -200,7 +200,7 @@ def test_render_png(scenes):
 @pytest.mark.parametrize("integrator, args, words", [
     ("photon", ["--photons", "3000", "--caustic-photons", "0", "--gather-rays", "2", "--radiance-photons", "off",
                 "--photon-k", "10", "--global-radius", "0.5"], ["photons stored", "photons", "pixels"]),
-    ("photon", ["--photons", "3000", "--photon-view", "global"], ["photons stored"]),
+    ("photon", ["--photons", "3000", "--photon-view", "global", "--photon-kernel", "cone"], ["photons stored"]),
     ("photon", ["--photons", "30000", "--photon-view", "positions"], ["photons stored"]),
     ("ppm", ["--photons", "2000", "--ppm-radius", "0.3", "--ppm-alpha", "0.5"], ["2 passes", "mean radius"]),
 ])

@@ -687,10 +687,11 @@ def test_photon_settings_from_ember_properties():
 
     render = NS(resolution_x=64, resolution_y=64, resolution_percentage=100, use_border=False)
     ember = NS(integrator="PPM", photons=1234, caustic_photons=0, photon_k=20, global_radius=0.5, caustic_radius=0.1,
-               gather_rays=4, radiance_photons=False, ppm_radius=0.25, ppm_alpha=0.5, photon_view="CAUSTIC")
+               gather_rays=4, radiance_photons=False, ppm_radius=0.25, ppm_alpha=0.5, photon_view="CAUSTIC",
+               photon_kernel="EPANECHNIKOV")
     s = export_settings(NS(render=render, ember=ember))
     assert (s.integrator, s.photons, s.caustic_photons, s.photon_k, s.gather_rays) == ("ppm", 1234, 0, 20, 4)
     assert (s.global_radius, s.caustic_radius, s.radiance_photons, s.ppm_radius, s.ppm_alpha) == (0.5, 0.1, False, 0.25, 0.5)
-    assert s.photon_view == "caustic"
+    assert (s.photon_view, s.photon_kernel) == ("caustic", "epanechnikov")
     with pytest.raises(EmberError, match="alpha"):
         export_settings(NS(render=render, ember=NS(ppm_alpha=1.5)))

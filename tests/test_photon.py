@@ -267,3 +267,11 @@ def test_photons_entering_water_keep_the_transmitted_flux():
     estimate = per_path.sum() / n
     se = per_path.std() / np.sqrt(n)
     assert abs(estimate - expected) < 4 * se, (estimate, expected, se)
+
+
+@pytest.mark.parametrize("kernel", ["cone", "epanechnikov"])
+def test_every_kernel_gives_the_analytic_radiance(kernel):
+    """The cone and Epanechnikov kernels are normalised: the analytic sphere stays L = 1."""
+    scene = sphere_with_point_light(width=16, height=16, samples=2)
+    img, _ = render(scene, photons=100_000, caustic_photons=0, photon_view="global", photon_kernel=kernel)
+    assert abs(img.mean() - 1.0) < 0.015

@@ -95,6 +95,7 @@ class EMBER_RENDER_PT_photons(EmberRenderPanel, bpy.types.Panel):
         col.prop(settings, "photons")
         col.prop(settings, "caustic_photons")
         col.prop(settings, "photon_k")
+        col.prop(settings, "photon_kernel")
         col.prop(settings, "global_radius")
         col.prop(settings, "caustic_radius")
         col.prop(settings, "gather_rays")

@@ -18,6 +18,12 @@ PATTERN_ITEMS = [
 ]
 
 
+PHOTON_KERNEL_ITEMS = [
+    ('UNIFORM', "Uniform", "Every photon within the radius counts the same (the seed's estimate)"),
+    ('CONE', "Cone", "Jensen's cone filter: nearer photons count more (sharper caustics)"),
+    ('EPANECHNIKOV', "Epanechnikov", "Smooth (1 - d^2/r^2)^2 weight, as Mitsuba and pbrt-v2"),
+]
+
 PHOTON_VIEW_ITEMS = [
     ('FULL', "Full", "The rendered image"),
     ('GLOBAL', "Global Map", "Debug: the global photon map's radiance estimate seen directly"),
@@ -86,6 +92,12 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
         name="Photons per Estimate",
         description="Nearest photons in one radiance estimate (more: smoother, more blurred)",
         default=50, min=2, soft_max=500,
+    )
+    photon_kernel: EnumProperty(
+        name="Kernel",
+        description="Weight of a photon by its distance in a radiance estimate",
+        items=PHOTON_KERNEL_ITEMS,
+        default='UNIFORM',
     )
     global_radius: FloatProperty(
         name="Global Radius",

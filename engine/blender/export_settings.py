@@ -89,8 +89,9 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
         kw["integrator"] = _integrator_name(ember.integrator)
     if ember is not None and getattr(ember, "pattern", None) is not None:
         kw["pattern"] = str(ember.pattern).lower()
-    if ember is not None and getattr(ember, "photon_view", None) is not None:
-        kw["photon_view"] = str(ember.photon_view).lower()
+    for name in ("photon_view", "photon_kernel"):  # enums: UI ids are upper case
+        if ember is not None and getattr(ember, name, None) is not None:
+            kw[name] = str(getattr(ember, name)).lower()
 
     cycles = getattr(scene, "cycles", None)
     filt = getattr(cycles, "pixel_filter_type", None) if cycles is not None else None

@@ -178,7 +178,7 @@ class PhotonIntegrator(Integrator):
             rows = rows * RADIANCE_STRIDE
             position = take(self.global_map.position, rows)
             normal = self.global_map.normal(rows)
-            E, _ = self.global_map.irradiance(position, normal, s.photon_k, self.r_global, min_count=MIN_COUNT,
+            E, _ = self.global_map.irradiance(position, normal, s.photon_k, self.r_global, kernel=s.photon_kernel, min_count=MIN_COUNT,
                                               accept=self.visible(position, normal, self.global_map))
             return {"position": position, "normal": normal, "E": E}
         layout = self.layout
@@ -266,12 +266,12 @@ class PhotonIntegrator(Integrator):
             _accumulate(L, rows, colour)
             return
         if view == "global":
-            Lg, _ = self.global_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_global, min_count=MIN_COUNT,
+            Lg, _ = self.global_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_global, kernel=s.photon_kernel, min_count=MIN_COUNT,
                                              accept=self.visible(at(p), at(ng_f), self.global_map))
             _accumulate(L, rows, bx * Lg)
             return
         if len(self.caustic_map):
-            Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_caustic, min_count=MIN_COUNT,
+            Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_caustic, kernel=s.photon_kernel, min_count=MIN_COUNT,
                                               accept=self.visible(at(p), at(ng_f), self.caustic_map))
             _accumulate(L, rows, bx * Lc)
         if view == "caustic":
@@ -380,7 +380,7 @@ class PhotonIntegrator(Integrator):
                                           hprim[y], take(bary, y))
                     py, ny = take(hp, y), take(ng_y, y)
                     Ly, _ = self.global_map.radiance(py, ny, lambda r, wi: bsdf_y.eval(wi, r)[0],
-                                                     s.photon_k, self.r_global, min_count=MIN_COUNT,
+                                                     s.photon_k, self.r_global, kernel=s.photon_kernel, min_count=MIN_COUNT,
                                                      accept=self.visible(py, ny, self.global_map))
                 _accumulate(out, g[y], take(beta, y) * Ly)
             # Specular gather hits: follow them (no emission: that light is the caustic map's).
