@@ -224,7 +224,24 @@ def _chunks(n: int, k: int):
 # ----------------------------------------------------------------------------------------------
 # Photon map
 
-class PhotonMap:
+class _Points:
+    """What photon maps and radiance photons share: packed arrays (`arrays`), positions (M,3),
+    octahedral normals (`_normal`) and a k-nearest index over the positions (`_index`)."""
+
+    def __len__(self) -> int:
+        return len(self.position)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held: the packed arrays plus the search structure."""
+        return sum(a.nbytes for a in self.arrays.values()) + self._index.nbytes
+
+    def normal(self, rows) -> np.ndarray:
+        """Unit normals (K,3) float32 of points `rows`."""
+        return decode_octahedral(take(self._normal, rows))
+
+
+class PhotonMap(_Points):
     """Photons stored at surface hits, with a k-nearest index over their positions.
 
     position (M,3) world; wi (M,3) unit, toward where the photon came from; flux (M,3) W per
@@ -272,21 +289,9 @@ class PhotonMap:
         self.n_emitted = int(n_emitted)
         self._index = _Index(p)
 
-    def __len__(self) -> int:
-        return len(self.position)
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes held: the packed photon arrays plus the search structure."""
-        return sum(a.nbytes for a in self.arrays.values()) + self._index.nbytes
-
     def wi(self, rows) -> np.ndarray:
         """Unit incident directions (K,3) float32 of photons `rows`."""
         return decode_octahedral(take(self._wi, rows))
-
-    def normal(self, rows) -> np.ndarray:
-        """Unit normals (K,3) float32 of photons `rows`."""
-        return decode_octahedral(take(self._normal, rows))
 
     # -- queries -------------------------------------------------------------------------------
 
@@ -407,7 +412,7 @@ class PhotonMap:
 # ----------------------------------------------------------------------------------------------
 # Radiance photons
 
-class RadiancePhotons:
+class RadiancePhotons(_Points):
     """Irradiance precomputed at a subset of photons (Christensen 1999).
 
     position (R,3) world, normal (R,3) unit, E (R,3) [W m^-2]: the irradiance estimate from the
@@ -467,16 +472,6 @@ class RadiancePhotons:
         self.position, self._normal, self.E = p, nrm, E
         self._index = _Index(p)
 
-    def __len__(self) -> int:
-        return len(self.position)
-
-    @property
-    def nbytes(self) -> int:
-        return sum(a.nbytes for a in self.arrays.values()) + self._index.nbytes
-
-    def normal(self, rows) -> np.ndarray:
-        """Unit normals (K,3) float32 of radiance photons `rows`."""
-        return decode_octahedral(take(self._normal, rows))
 
     def lookup(self, p, n, r_max=np.inf, return_found: bool = False, accept=None):
         """Irradiance E (N,3) [W m^-2] at points p (N,3) with unit normals n (N,3): the E of the
