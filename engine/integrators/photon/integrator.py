@@ -366,19 +366,21 @@ class PhotonIntegrator(Integrator):
             wo = -d
             ng_y, ns_y = shading_frame(mesh, self.flat_normal, hprim, bary, ng, wo)
             stores = self.stores[mat]
-            y = np.flatnonzero(stores)
-            if len(y):
-                if self.radiance_photons is not None:
-                    py, ny = take(hp, y), take(ng_y, y)
+            # Radiance photons hold irradiance, so they serve surfaces that reflect it as
+            # Lambert's law says (albedo / pi E); any other BSDF is evaluated per photon.
+            lambert = stores & ~np.isnan(self.lambert_albedo[mat, 0]) if self.radiance_photons is not None else None
+            for y, fast in ((np.flatnonzero(lambert), True), (np.flatnonzero(stores & ~lambert), False)) \
+                    if lambert is not None else ((np.flatnonzero(stores), False),):
+                if len(y) == 0:
+                    continue
+                py, ny = take(hp, y), take(ng_y, y)
+                if fast:
                     E = self.radiance_photons.lookup(py, ny, self.r_global,
                                                      accept=self.visible(py, ny, self.radiance_photons))
-                    bsdf_y = make_closure(scene, self.lambert_albedo, mat[y], take(ns_y, y), take(ng_y, y), take(wo, y),
-                                          hprim[y], take(bary, y))
-                    Ly = E * bsdf_y.reflectance * (1.0 / np.pi)
+                    Ly = E * take(self.lambert_albedo, mat[y]) * (1.0 / np.pi)
                 else:
-                    bsdf_y = make_closure(scene, self.lambert_albedo, mat[y], take(ns_y, y), take(ng_y, y), take(wo, y),
-                                          hprim[y], take(bary, y))
-                    py, ny = take(hp, y), take(ng_y, y)
+                    bsdf_y = make_closure(scene, self.lambert_albedo, mat[y], take(ns_y, y), ny, take(wo, y), hprim[y],
+                                          take(bary, y))
                     Ly, _ = self.global_map.radiance(py, ny, lambda r, wi: bsdf_y.eval(wi, r)[0],
                                                      s.photon_k, self.r_global, kernel=s.photon_kernel, min_count=MIN_COUNT,
                                                      accept=self.visible(py, ny, self.global_map))
