@@ -94,7 +94,10 @@ def test_point_light_in_a_sphere_gives_the_analytic_radiance():
     scene = sphere_with_point_light(width=16, height=16, samples=4)
     img, stats = render(scene, photons=100_000, caustic_photons=0)
     assert stats.nonfinite == 0
-    assert abs(img.mean() - 1.0) < 0.01
+    # Radiance photons estimate E at photons from the k - 2 others inside the (k-1)-th
+    # other's radius: unbiased for Poisson positions, (k-2)/(k-1) (-2 % of the indirect half)
+    # for stratified ones like these. Measured 0.990; a 3 % flux error gives 0.96 or 1.02.
+    assert abs(img.mean() - 1.0) < 0.015
     glob, _ = render(scene, photons=100_000, caustic_photons=0, photon_view="global")
     assert abs(glob.mean() - 1.0) < 0.01
 

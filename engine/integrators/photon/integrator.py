@@ -178,8 +178,17 @@ class PhotonIntegrator(Integrator):
             rows = rows * RADIANCE_STRIDE
             position = take(self.global_map.position, rows)
             normal = self.global_map.normal(rows)
-            E, _ = self.global_map.irradiance(position, normal, s.photon_k, self.r_global, kernel=s.photon_kernel, min_count=MIN_COUNT,
-                                              accept=self.visible(position, normal, self.global_map))
+            visible = self.visible(position, normal, self.global_map)
+
+            def others(r, j):
+                # The estimate at a photon must not count that photon: it was not drawn
+                # independently of the point, and where photons are sparse (a few per disk)
+                # counting it overstated E several-fold (interior: +5-10 % overall).
+                keep = j != rows[r]
+                keep[keep] = visible(r[keep], j[keep])
+                return keep
+            E, _ = self.global_map.irradiance(position, normal, s.photon_k, self.r_global, kernel=s.photon_kernel,
+                                              min_count=MIN_COUNT, accept=others)
             return {"position": position, "normal": normal, "E": E}
         layout = self.layout
         k = layout.paths(stage, item)
@@ -375,8 +384,16 @@ class PhotonIntegrator(Integrator):
                     continue
                 py, ny = take(hp, y), take(ng_y, y)
                 if fast:
-                    E = self.radiance_photons.lookup(py, ny, self.r_global,
-                                                     accept=self.visible(py, ny, self.radiance_photons))
+                    E, found = self.radiance_photons.lookup(py, ny, self.r_global, return_found=True,
+                                                            accept=self.visible(py, ny, self.radiance_photons))
+                    # Where photons are sparse no radiance photon may lie within the radius:
+                    # the full estimate there, not 0 (which darkened a sunlit interior 10 %).
+                    miss = np.flatnonzero(~found)
+                    if len(miss):
+                        pm, nm = take(py, miss), take(ny, miss)
+                        E[miss], _ = self.global_map.irradiance(pm, nm, s.photon_k, self.r_global,
+                                                                kernel=s.photon_kernel, min_count=MIN_COUNT,
+                                                                accept=self.visible(pm, nm, self.global_map))
                     Ly = E * take(self.lambert_albedo, mat[y]) * (1.0 / np.pi)
                 else:
                     bsdf_y = make_closure(scene, self.lambert_albedo, mat[y], take(ns_y, y), ny, take(wo, y), hprim[y],
