@@ -104,15 +104,13 @@ class PhotonIntegrator(Integrator):
         s = self.scene.settings
         if round == 0:
             return [Stage("photons", self.n_global_items + self.n_caustic_items, publish=True)]
-        if round == 1 and s.radiance_photons and s.photon_view == "full" and self.n_global_photons:
-            items = -(-(-(-self.n_global_photons // RADIANCE_STRIDE)) // RADIANCE_BATCH)
-            return [Stage("radiance", items, publish=True)]
-        if round in (1, 2) and not self._pixels_started:
-            self._pixels_started = True
-            return [self.pixel_stage(0, self.layout.total_paths)]
-        return []
-
-    _pixels_started = False
+        if round == 1:  # the photons are reduced: their count decides whether radiance photons pay
+            self._after_photons = [[self.pixel_stage(0, self.layout.total_paths)]]
+            if s.radiance_photons and s.photon_view == "full" and self.n_global_photons:
+                items = -(-(-(-self.n_global_photons // RADIANCE_STRIDE)) // RADIANCE_BATCH)
+                self._after_photons.insert(0, [Stage("radiance", items, publish=True)])
+        rest = self._after_photons
+        return rest[round - 1] if round - 1 < len(rest) else []
 
     def reduce(self, stage, results):
         s = self.scene.settings
