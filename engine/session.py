@@ -125,7 +125,6 @@ class RenderSession:
             cut = seg_end
 
     def run(self, on_update=None, should_stop=None) -> RenderStats:
-        s = self.scene.settings
         t0 = time.perf_counter()
         run = _Run(self, on_update, should_stop, t0)
         if self.processes:

@@ -1,5 +1,6 @@
 """Ray-query robustness (algorithms.md section 2, hard case 1; pbrt-v4 Triangle.Reintersect)."""
 import numpy as np
+import pytest
 
 from ember.engine.accel import Accel, offset_origin
 from ember.engine.scene import Mesh

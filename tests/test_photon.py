@@ -12,7 +12,6 @@ import pytest
 from core_scenes import Lights, Materials, MAT_DIFFUSE, Scene, World, furnace_box, perspective, quads_mesh, \
     settings, sphere_with_point_light
 from ember.engine import rng
-from ember.engine.integrators.base import Stage
 from ember.engine.session import RenderSession
 from ember.engine.tracer import Tracer
 
@@ -248,7 +247,7 @@ def test_photons_entering_water_keep_the_transmitted_flux():
     radiance form of the BSDF lands 1 / 1.33^2 = 57 % of it (closed glass objects hide that
     error: it cancels on the way out)."""
     from ember.engine.bsdf import fresnel
-    from ember.engine.scene import LOBE_DIELECTRIC, Mesh
+    from ember.engine.scene import LOBE_DIELECTRIC
 
     size = 1e4
     water = [(-size, -size, 0.0), (size, -size, 0.0), (size, size, 0.0), (-size, size, 0.0)]

@@ -9,8 +9,6 @@ Raises EmberError for scenes Ember cannot render and Cancelled when test_break()
 """
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from ..errors import Cancelled, EmberError

@@ -113,7 +113,6 @@ class PhotonIntegrator(Integrator):
         return rest[round - 1] if round - 1 < len(rest) else []
 
     def reduce(self, stage, results):
-        s = self.scene.settings
         if stage.name == "photons":
             g, c = results[:self.n_global_items], results[self.n_global_items:]
             cat = lambda parts, key: np.concatenate([r[key] for r in parts]) if parts else np.zeros((0, 3), np.float32)  # noqa: E731
@@ -259,7 +258,7 @@ class PhotonIntegrator(Integrator):
 
     def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth):
         """Direct light, caustics and final gathering at the diffuse points x (rows of idx)."""
-        s, lights = self.scene.settings, self.ctx.lights
+        s = self.scene.settings
         at = gatherer(x, len(idx))
         rows, bx = idx[x], at(beta)
         G = max(s.gather_rays, 0)

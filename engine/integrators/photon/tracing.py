@@ -20,6 +20,7 @@ import numpy as np
 
 from ...accel import offset_origin
 from ...bsdf.closure import make_closure, plain_lambert_albedo
+from ...errors import Cancelled
 from ...scene import LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_PHONG, Materials
 from ...vec import dot, max3, scale, take
 from ..surface import flat_normals, shading_frame, towards
@@ -59,9 +60,6 @@ class PhotonTracer:
         photon's first hit: direct light) of the stored photons,
         and `bounces` (the photon-surface interactions traced, for statistics). caustic_only:
         only caustic photons are stored and paths end at their first diffuse hit."""
-        from ...errors import Cancelled
-
-        n = len(sampler.key)
         u0 = sampler.get(EMIT_POS, None, 3)
         em = self.emitter.sample(u0[:, 2], u0[:, :2], sampler.get(EMIT_DIR, None, 2))
         live = np.flatnonzero(em.valid)
