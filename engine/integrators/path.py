@@ -68,16 +68,24 @@ class PathTracer:
         """Radiance estimates (N,3), one path per pixel (px, py). Raises Cancelled if stop is set."""
         s = self.scene
         o64, d, tmax = camera_mod.generate_rays(s.camera, s.settings, px, py, sampler.get(0, None, 2))
-        n = len(px)
+        return self.trace(sampler, o64, o64.astype(np.float32), d, tmax, np.full(len(px), -1, np.int64), stop)
+
+    def trace(self, sampler, o64, o32, d, tmax, skip, stop=None, first_emission=True,
+              max_depth=None) -> np.ndarray:
+        """Radiance (N,3) arriving along rays from o64 (float64 points; o32 their offset float32
+        origins, skip the primitive each leaves or -1) in directions d; tmax (N,) or None.
+        Random groups from 1 (group 0 is the caller's). first_emission False leaves out the
+        emission the rays themselves find (a gather ray whose direct light is sampled apart);
+        max_depth: bounces after the first hit (default: the scene's)."""
+        n = len(d)
         L = np.zeros((3, n))  # channel-major: see _accumulate
         idx = np.arange(n)  # which pixel sample each live path belongs to
-        o32 = o64.astype(np.float32)
         beta = np.ones((n, 3))
         pdf_prev = np.zeros(n)  # q * p_b of the bounce that produced the ray
         no_mis = np.ones(n, bool)  # camera ray: emitters seen with weight 1
-        skip = np.full(n, -1, np.int64)
-        mesh = s.mesh
-        for depth in range(self.max_depth + 1):
+        mesh = self.scene.mesh
+        max_depth = self.max_depth if max_depth is None else max_depth
+        for depth in range(max_depth + 1):
             if stop is not None and stop.is_set():
                 raise Cancelled()
             if len(idx) == 0:
@@ -85,12 +93,13 @@ class PathTracer:
             base = 1 + _GROUPS * depth
             hit = self.accel.intersect(o32, d, tmax, skip)
             camera_ray = np.full(len(idx), depth == 0)
+            emission = first_emission or depth > 0
             # Light objects the ray passes on its way (they do not stop it).
-            if len(self.lights.hittable):
+            if len(self.lights.hittable) and emission:
                 _accumulate(L, idx, beta * self.lights.emission_along(o64, d, hit.t, pdf_prev, ~no_mis, camera_ray))
             # Escaped rays see the suns and the world.
             missed = hit.prim < 0
-            if missed.any() and self.lights.sees_escaped:
+            if missed.any() and self.lights.sees_escaped and emission:
                 r = np.flatnonzero(missed)
                 _accumulate(L, idx[r], take(beta, r) * self.lights.escaped(take(d, r), pdf_prev[r], ~no_mis[r], camera_ray[r]))
             keep = np.flatnonzero(~missed)
@@ -102,19 +111,19 @@ class PathTracer:
             mat = mesh.material[prim]
             # Emissive triangles hit by the ray.
             emits = self.emissive_material[mat]
-            if emits.any():
+            if emits.any() and emission:
                 r = np.flatnonzero(emits)
                 Le = take(self.materials.emission, mat[r])
                 cos_l = np.abs(dot(take(d, r), take(ng, r)))
                 pdf_light = self.lights.pdf_triangle_hit(prim[r], take(o_prev, keep[r]), hit_t[r], cos_l)
                 w = np.where(no_mis[r], 1.0, pdf_prev[r] / np.maximum(pdf_prev[r] + pdf_light, 1e-300))
                 _accumulate(L, idx[r], take(beta, r) * scale(Le, w))
-            if depth == self.max_depth:
+            if depth == max_depth:
                 break
             # Shading frame, flipped to the side the ray came from (two-sided, like Cycles).
             wo = -d
             ng_f, ns = shading_frame(mesh, self.flat_normal, prim, bary, ng, wo)
-            bsdf = make_closure(s, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary)
+            bsdf = make_closure(self.scene, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary)
             ns = bsdf.ns  # may be perturbed (normal maps)
             albedo = max3(bsdf.reflectance)
             q = np.minimum(1.0, albedo) if depth >= self.rr_depth else np.ones(len(idx))
