@@ -41,8 +41,9 @@ _K_DOMAIN = np.uint64(0x8CB92BA72F3D8DD7)  # separates the streams of different 
 
 # Domains: independent streams for different kinds of paths. A camera path's numbers are those
 # of domain 0 (unchanged since before domains existed); photon paths use pixel = photon path
-# index within its pass and sample = pass; gather rays their own stream per camera sample.
-CAMERA, PHOTONS, GATHER = 0, 1, 2
+# index within its pass and sample = pass; gather rays their own stream per camera sample;
+# irradiance-cache records pixel = record index and sample = gather ray.
+CAMERA, PHOTONS, GATHER, RECORDS = 0, 1, 2, 3
 
 PATTERNS = ("sobol", "random")
 
@@ -198,7 +199,7 @@ def sobol_reversed(index, k: int = 4) -> np.ndarray:
 
 class Sampler:
     """Uniform numbers for a batch of N paths, path i belonging to (pixel[i], sample[i]) of
-    stream `domain` (CAMERA, PHOTONS, GATHER: independent of each other).
+    stream `domain` (CAMERA, PHOTONS, GATHER, RECORDS: independent of each other).
 
     `get(dim, rows=None, k=1)` returns float64 in [0, 1), shape (len(rows),) for k = 1 or
     (len(rows), k), for the paths `rows` (all when None). Dimensions are small integers the

@@ -71,12 +71,13 @@ class PathTracer:
         return self.trace(sampler, o64, o64.astype(np.float32), d, tmax, np.full(len(px), -1, np.int64), stop)
 
     def trace(self, sampler, o64, o32, d, tmax, skip, stop=None, first_emission=True,
-              max_depth=None) -> np.ndarray:
+              max_depth=None, t_first=None) -> np.ndarray:
         """Radiance (N,3) arriving along rays from o64 (float64 points; o32 their offset float32
         origins, skip the primitive each leaves or -1) in directions d; tmax (N,) or None.
         Random groups from 1 (group 0 is the caller's). first_emission False leaves out the
         emission the rays themselves find (a gather ray whose direct light is sampled apart);
-        max_depth: bounces after the first hit (default: the scene's)."""
+        max_depth: bounces after the first hit (default: the scene's); t_first (N,), if given,
+        receives the first hit's distance (inf where the ray escaped)."""
         n = len(d)
         L = np.zeros((3, n))  # channel-major: see _accumulate
         idx = np.arange(n)  # which pixel sample each live path belongs to
@@ -92,6 +93,8 @@ class PathTracer:
                 break
             base = 1 + _GROUPS * depth
             hit = self.accel.intersect(o32, d, tmax, skip)
+            if depth == 0 and t_first is not None:
+                t_first[:] = np.where(hit.prim >= 0, hit.t, np.inf)
             camera_ray = np.full(len(idx), depth == 0)
             emission = first_emission or depth > 0
             # Light objects the ray passes on its way (they do not stop it).

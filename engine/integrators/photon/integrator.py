@@ -203,6 +203,7 @@ class PhotonIntegrator(Integrator):
         o32 = o64.astype(np.float32)
         beta = np.ones((n, 3))
         skip = np.full(n, -1, np.int64)
+        dist = np.zeros(n)  # length of the camera path so far (pixel footprints)
         mesh = scene.mesh
         for depth in range(s.max_depth + 1):
             if stop is not None and stop.is_set():
@@ -223,7 +224,7 @@ class PhotonIntegrator(Integrator):
             keep = np.flatnonzero(~missed)
             if len(keep) == 0:
                 break
-            idx, prim = idx[keep], hit.prim[keep]
+            idx, prim, dist = idx[keep], hit.prim[keep], dist[keep] + hit.t[keep]
             beta, p, d, bary, ng = (take(a, keep) for a in (beta, hit.p, d, hit.b, hit.ng))
             mat = mesh.material[prim]
             emits = self.emissive_material[mat]
@@ -237,7 +238,7 @@ class PhotonIntegrator(Integrator):
             diffuse = self.stores[mat] & bsdf.has_smooth
             x = np.flatnonzero(diffuse)
             if len(x):
-                self._shade_diffuse(L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth)
+                self._shade_diffuse(L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist)
             spec = np.flatnonzero(~diffuse)
             if depth == s.max_depth or len(spec) == 0:
                 break
@@ -250,14 +251,15 @@ class PhotonIntegrator(Integrator):
             live = np.flatnonzero(max3(beta) > 0)
             ok = ok[live]
             beta = take(beta, live)
-            idx, d = idx[ok], take(bs.wi, ok)
+            idx, d, dist = idx[ok], take(bs.wi, ok), dist[ok]
             o64 = take(p, ok)
             o32 = offset_origin(o64, towards(take(ng_f, ok), d))
             skip, tmax = prim[ok], None
         return np.ascontiguousarray(L.T)
 
-    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth):
-        """Direct light, caustics and final gathering at the diffuse points x (rows of idx)."""
+    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist):
+        """Direct light, caustics and final gathering at the diffuse points x (rows of idx);
+        dist: the camera paths' lengths."""
         s = self.scene.settings
         at = gatherer(x, len(idx))
         rows, bx = idx[x], at(beta)
@@ -330,23 +332,32 @@ class PhotonIntegrator(Integrator):
         scene, s, accel, lights = self.scene, self.scene.settings, self.ctx.accel, self.ctx.lights
         u = sampler.get(0, None, 3)
         bs = _sample_rows(bsdf, pts, u)
-        K = len(pts)
-        out = np.zeros((3, K))
         g = np.flatnonzero(bs.valid)
-        beta = take(bs.weight, g)
         d = take(bs.wi, g)
-        pdf_mis = G * bs.pdf[g]
-        delta = bs.delta[g]
         o64 = take(p, pts[g])
         o32 = offset_origin(o64, towards(take(ng_f, pts[g]), d))
-        skip = prim[pts[g]]
+        return self._trace_gather(sampler, len(pts), g, take(bs.weight, g), d, o64, o32, prim[pts[g]],
+                                  (G * bs.pdf[g], bs.delta[g]), emission_only=emission_only)
+
+    def _trace_gather(self, sampler, K, g, beta, d, o64, o32, skip, mis=None, t_first=None, emission_only=False):
+        """Radiance (K,3) x beta found by gather rays g (rows of the K outputs) leaving o64
+        (float64; o32 the offset float32 origins, skip their primitives) in directions d.
+        mis = (pdf, delta): the rays are also the BSDF strategy of direct light, and the
+        emission they find is weighted against light sampling (balance heuristic); None: that
+        emission is left out (its light is sampled apart). t_first (K,), if given, receives
+        the first hit's distance (inf where the ray escaped). Random groups from 1."""
+        scene, s, accel, lights = self.scene, self.scene.settings, self.ctx.accel, self.ctx.lights
+        out = np.zeros((3, K))
+        pdf_mis, delta = mis if mis is not None else (None, None)
         mesh = scene.mesh
         for depth in range(s.max_depth):
             if len(g) == 0:
                 break
             hit = accel.intersect(o32, d, None, skip)
             first = depth == 0
-            if first:  # the gather ray is also the BSDF strategy of direct light (MIS)
+            if first and t_first is not None:
+                t_first[g] = np.where(hit.prim >= 0, hit.t, np.inf)
+            if first and mis is not None:  # the gather ray is also the BSDF strategy of direct light (MIS)
                 not_camera = np.zeros(len(g), bool)
                 if len(lights.hittable):
                     _accumulate(out, g, beta * lights.emission_along(o64, d, hit.t, pdf_mis, ~delta, not_camera))
@@ -358,7 +369,7 @@ class PhotonIntegrator(Integrator):
             g, hp, hprim = g[keep], take(hit.p, keep), hit.prim[keep]
             beta, d, bary, ng = take(beta, keep), take(d, keep), take(hit.b, keep), take(hit.ng, keep)
             mat = mesh.material[hprim]
-            if first:
+            if first and mis is not None:
                 emits = self.emissive_material[mat]
                 if emits.any():
                     r = np.flatnonzero(emits)

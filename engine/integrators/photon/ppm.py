@@ -134,7 +134,7 @@ class ProgressivePhotonIntegrator(PhotonIntegrator):
         L = self._render(sampler, layout.pixel[j], k // layout.n_pixels, layout.px[j], layout.py[j], stop)
         return {"L": L, "phi": self._phi, "count": self._count}
 
-    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth):
+    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist):
         """Direct light (a light sample and a BSDF sample, balance heuristic) and the pass's
         photons within the pixel's radius."""
         s = self.scene.settings
