@@ -12,7 +12,8 @@ Options (each defaults to the scene's own setting):
     --time-limit S       stop after S seconds (0 = no limit)
     --noise-target X     stop once the estimated relative noise falls to X (0 = off)
     --seed K             random seed (>= 0)
-    --integrator NAME    path, photon (photon mapping) or ppm (progressive photon mapping)
+    --integrator NAME    path, photon (photon mapping), ppm (progressive photon mapping) or
+                         icache (irradiance cache on photon-map final gathering)
     --pattern NAME       sobol (Owen-scrambled Sobol, the default) or random (independent)
     --resolution WxH     frame size in pixels (resolution percentage becomes 100 %)
     --max-depth N        longest path (1..1024)
@@ -30,6 +31,13 @@ Photon mapping (integrators photon and ppm; radii in metres, 0 = scene-relative 
     --photon-view NAME   full, or a debug view: global (the global map seen directly), caustic,
                          positions (where photons landed)
     --ppm-radius R, --ppm-alpha A   progressive photon mapping: first radius, radius shrink (0..1)
+Irradiance cache (integrator icache; also reads the photon options):
+    --icache-a A         accuracy a: records used where Ward's error < a (0.05..0.5; seed: 0.1-0.35)
+    --icache-rays N      gather rays per record (50..2000)
+    --icache-gradients on|off   extrapolate records by their gradients
+    --icache-weight NAME ward or tabellion
+    --icache-gather NAME photon (the global map) or path (path-traced gather rays)
+    --icache-view NAME   full, or records (record positions as dots)
 
 The .blend is only read: settings are changed on the loaded copy in memory and nothing
 is saved. The image is written to a hidden temporary file beside the output, checked, and
@@ -146,7 +154,14 @@ PHOTON_OPTIONS = (
     ("--photon-kernel", "photon_kernel", str, "uniform, cone or epanechnikov"),
     ("--ppm-radius", "ppm_radius", _metres, "progressive photon mapping: first radius (m, 0 = auto)"),
     ("--ppm-alpha", "ppm_alpha", _alpha, "progressive photon mapping: radius shrink, in (0, 1)"),
+    ("--icache-a", "icache_a", _finite_at_least_zero("a number such as 0.2"), "irradiance cache: accuracy a"),
+    ("--icache-rays", "icache_rays", _positive_int, "irradiance cache: gather rays per record (50..2000)"),
+    ("--icache-gradients", "icache_gradients", _on_off, "on|off: extrapolate records by their gradients"),
+    ("--icache-weight", "icache_weight", str, "irradiance cache: ward or tabellion"),
+    ("--icache-gather", "icache_gather", str, "irradiance cache: photon or path"),
+    ("--icache-view", "icache_view", str, "irradiance cache: full, or records"),
 )
+ENUM_OPTIONS = ("photon_view", "photon_kernel", "icache_weight", "icache_gather", "icache_view")
 
 
 def _resolution(text):
@@ -431,7 +446,7 @@ def _apply_settings(scene, args) -> None:
         value = getattr(args, prop)
         if value is None:
             continue
-        if prop in ("photon_view", "photon_kernel"):
+        if prop in ENUM_OPTIONS:
             items = [i.identifier for i in type(ember).bl_rna.properties[prop].enum_items]
             if value.upper() not in items:
                 what = prop.replace("_", " ")

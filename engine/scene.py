@@ -423,6 +423,13 @@ class Settings:
     photon_view: str = "full"  # "full", or a debug view: "global", "caustic", "positions"
     ppm_radius: float = 0.0  # progressive photon mapping: first radius (m), 0 = 1 % of the scene radius
     ppm_alpha: float = 2.0 / 3.0  # share of a pass's photons kept (radius shrink), in (0, 1)
+    # Irradiance cache (integrator "icache"); also reads the photon settings above.
+    icache_rays: int = 392  # gather rays per record (M x 2M cells; Mitsuba 0.6's 14 x 28), 50-2000
+    icache_a: float = 0.2  # accuracy a: a record is used where Ward's error < a (the seed's 0.1-0.35)
+    icache_gradients: bool = True  # extrapolate records by their rotational and translational gradients
+    icache_weight: str = "ward"  # interpolation weight: "ward" (the seed) or "tabellion" (Tabellion-Lamorlette)
+    icache_gather: str = "photon"  # radiance at gather hits: "photon" (global map, the seed's) or "path"
+    icache_view: str = "full"  # "full", or the debug view "records" (records as dots)
 
     def __post_init__(self):
         if self.border is None:

@@ -12,6 +12,8 @@ import numpy as np
 from .errors import EmberError
 from .rng import PATTERNS
 from .integrators import NAMES as INTEGRATORS
+from .integrators.irradiance.cache import WEIGHTS
+from .integrators.irradiance.integrator import GATHER_MODES, ICACHE_VIEWS
 from .integrators.photon.photon_map import KERNELS
 from .scene import FILTERS, STRATEGIES, Scene
 
@@ -45,6 +47,7 @@ def validate(scene: Scene) -> None:
     if s.integrator not in INTEGRATORS:
         problems.append(f"unknown integrator {s.integrator!r} (use one of {', '.join(INTEGRATORS)})")
     problems += photon_problems(s)
+    problems += icache_problems(s)
     if problems:
         raise EmberError("Invalid render settings: " + "; ".join(problems))
     check_light_values(scene)
@@ -217,4 +220,23 @@ def photon_problems(s) -> list[str]:
         problems.append(f"unknown photon kernel {s.photon_kernel!r} (use one of {', '.join(KERNELS)})")
     if s.photon_view not in PHOTON_VIEWS:
         problems.append(f"unknown photon view {s.photon_view!r} (use one of {', '.join(PHOTON_VIEWS)})")
+    return problems
+
+
+ICACHE_RAYS = (50, 2000)
+ICACHE_A = (0.05, 0.5)  # the seed recommends 0.1-0.35; a little either side for studies
+
+
+def icache_problems(s) -> list[str]:
+    """The irradiance-cache settings (checked whatever the integrator, as photon_problems)."""
+    problems = []
+    if not ICACHE_RAYS[0] <= s.icache_rays <= ICACHE_RAYS[1]:
+        problems.append(f"irradiance-cache rays per record must be in {ICACHE_RAYS[0]}-{ICACHE_RAYS[1]} "
+                        f"(got {s.icache_rays})")
+    if not ICACHE_A[0] <= s.icache_a <= ICACHE_A[1]:
+        problems.append(f"irradiance-cache accuracy a must be in {ICACHE_A[0]}-{ICACHE_A[1]} (got {s.icache_a})")
+    for name, value, allowed in (("weight", s.icache_weight, WEIGHTS), ("gather", s.icache_gather, GATHER_MODES),
+                                 ("view", s.icache_view, ICACHE_VIEWS)):
+        if value not in allowed:
+            problems.append(f"unknown irradiance-cache {name} {value!r} (use one of {', '.join(allowed)})")
     return problems

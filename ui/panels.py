@@ -103,7 +103,33 @@ class EMBER_RENDER_PT_photons(EmberRenderPanel, bpy.types.Panel):
         col.prop(settings, "photon_view")
 
 
-classes = (EMBER_RENDER_PT_sampling, EMBER_RENDER_PT_photons, EMBER_RENDER_PT_light_paths,
+class EMBER_RENDER_PT_icache(EmberRenderPanel, bpy.types.Panel):
+    bl_label = "Irradiance Cache"
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and context.scene.ember.integrator == 'ICACHE'
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.ember
+        col = layout.column()
+        for name in ("icache_a", "icache_rays", "icache_gradients", "icache_weight", "icache_gather", "icache_view"):
+            col.prop(settings, name)
+        col = layout.column(heading="Photons")
+        if settings.icache_gather == 'PHOTON':
+            col.prop(settings, "photons")
+            col.prop(settings, "global_radius")
+            col.prop(settings, "radiance_photons")
+        col.prop(settings, "caustic_photons")
+        col.prop(settings, "caustic_radius")
+        col.prop(settings, "photon_k")
+        col.prop(settings, "gather_rays", text="Gather Rays (uncached)")
+
+
+classes = (EMBER_RENDER_PT_sampling, EMBER_RENDER_PT_photons, EMBER_RENDER_PT_icache, EMBER_RENDER_PT_light_paths,
            EMBER_RENDER_PT_performance)
 
 # The COMPAT_ENGINES sets we added ENGINE to (by identity: mixins share one set object).

@@ -31,6 +31,21 @@ PHOTON_VIEW_ITEMS = [
     ('POSITIONS', "Photon Positions", "Debug: where photons landed (white), caustic photons in orange"),
 ]
 
+ICACHE_WEIGHT_ITEMS = [
+    ('WARD', "Ward", "Ward's weight 1 / (|p - p_i| / R_i + sqrt(1 - n.n_i)) with the accuracy threshold (the seed's)"),
+    ('TABELLION', "Tabellion-Lamorlette", "1 - max(distance, normal) terms: falls to 0 at the edge (no contours)"),
+]
+
+ICACHE_GATHER_ITEMS = [
+    ('PHOTON', "Photon Map", "Gather rays read the global photon map (the seed's recommendation: fast, smooth)"),
+    ('PATH', "Path Tracing", "Gather rays trace paths (no photon-map blur; noisier records)"),
+]
+
+ICACHE_VIEW_ITEMS = [
+    ('FULL', "Full", "The rendered image"),
+    ('RECORDS', "Records", "Debug: record positions as white dots over the dimmed indirect light"),
+]
+
 
 class EmberSceneSettings(bpy.types.PropertyGroup):
     integrator: EnumProperty(
@@ -136,6 +151,40 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
         name="View",
         description="What the photon integrator shows",
         items=PHOTON_VIEW_ITEMS,
+        default='FULL',
+    )
+    icache_rays: IntProperty(
+        name="Rays per Record",
+        description="Stratified gather rays per irradiance record (M x 2M cells)",
+        default=392, min=50, max=2000,
+    )
+    icache_a: FloatProperty(
+        name="Accuracy",
+        description="Ward's accuracy a: a record is used where its estimated error is below a "
+                    "(smaller: more records, more accurate; the seed recommends 0.1-0.35)",
+        default=0.2, min=0.05, max=0.5,
+    )
+    icache_gradients: BoolProperty(
+        name="Gradients",
+        description="Extrapolate records by their rotational and translational irradiance gradients",
+        default=True,
+    )
+    icache_weight: EnumProperty(
+        name="Weight",
+        description="How records are weighted when interpolated",
+        items=ICACHE_WEIGHT_ITEMS,
+        default='WARD',
+    )
+    icache_gather: EnumProperty(
+        name="Gather",
+        description="Radiance found by a record's gather rays",
+        items=ICACHE_GATHER_ITEMS,
+        default='PHOTON',
+    )
+    icache_view: EnumProperty(
+        name="View",
+        description="What the irradiance cache shows",
+        items=ICACHE_VIEW_ITEMS,
         default='FULL',
     )
 

@@ -15,14 +15,14 @@ from ..errors import EmberError
 from ..rng import PATTERNS
 from ..integrators import NAMES as INTEGRATORS
 from ..scene import FILTERS, Settings
-from ..validation import photon_problems
+from ..validation import icache_problems, photon_problems
 
 _DEFAULTS = Settings()
 
 # scene.ember field -> Settings field (same name); read with getattr so plain bpy works.
 _EMBER_FIELDS = ("samples", "max_depth", "seed", "time_limit", "noise_target", "batch_size",
                  "photons", "caustic_photons", "photon_k", "global_radius", "caustic_radius", "gather_rays",
-                 "radiance_photons", "ppm_radius", "ppm_alpha")
+                 "radiance_photons", "ppm_radius", "ppm_alpha", "icache_rays", "icache_a", "icache_gradients")
 _INTEGRATOR_ENUM = {name.upper(): name for name in INTEGRATORS}  # UI enum id -> registry name
 
 
@@ -89,7 +89,7 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
         kw["integrator"] = _integrator_name(ember.integrator)
     if ember is not None and getattr(ember, "pattern", None) is not None:
         kw["pattern"] = str(ember.pattern).lower()
-    for name in ("photon_view", "photon_kernel"):  # enums: UI ids are upper case
+    for name in ("photon_view", "photon_kernel", "icache_weight", "icache_gather", "icache_view"):  # UI ids: upper case
         if ember is not None and getattr(ember, name, None) is not None:
             kw[name] = str(getattr(ember, name)).lower()
 
@@ -131,4 +131,7 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
     problems = photon_problems(settings)
     if problems:
         raise EmberError("Invalid photon settings: " + "; ".join(problems) + ".")
+    problems = icache_problems(settings)
+    if problems:
+        raise EmberError("Invalid irradiance-cache settings: " + "; ".join(problems) + ".")
     return settings

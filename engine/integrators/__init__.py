@@ -2,11 +2,13 @@
 exporter and validation all derive from it."""
 from __future__ import annotations
 
+from .irradiance.integrator import IrradianceCacheIntegrator
 from .path import PathIntegrator
 from .photon.integrator import PhotonIntegrator
 from .photon.ppm import ProgressivePhotonIntegrator
 
-REGISTRY = {cls.name: cls for cls in (PathIntegrator, PhotonIntegrator, ProgressivePhotonIntegrator)}
+REGISTRY = {cls.name: cls for cls in (PathIntegrator, PhotonIntegrator, ProgressivePhotonIntegrator,
+                                      IrradianceCacheIntegrator)}
 NAMES = tuple(REGISTRY)
 
 

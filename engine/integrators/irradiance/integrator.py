@@ -1,0 +1,363 @@
+"""Irradiance caching with gradients on photon-map final gathering (seed 001; Ward, Rubinstein
+and Clear 1988; Ward and Heckbert 1992; Krivanek et al. 2005, 2008; Jensen 2001).
+
+Diffuse indirect light changes slowly: it is computed carefully at a few records (E from
+M x N stratified gather rays, with rotational and translational gradients) and interpolated
+everywhere else. Rounds of stages (engine/integrators/base.py):
+
+  photons   the global and caustic photon maps, as `photon` (the global map only when gather
+            rays read it, the default; the caustic map only with specular surfaces)
+  radiance  radiance photons, as `photon`
+  probe     the overture's points: the first diffuse point of every camera sample of the first
+            pass (behind mirrors and glass too)
+  records   records for a well-spread subset of the points that no record covers, coarse to
+            fine (the subset's spacing halves every round), until every point is covered
+  pixels    passes in blocks of 1, 1, 2, 4, ...: at the first diffuse point, direct light by
+            light sampling, caustics from the caustic map, and albedo / pi times the cached
+            irradiance; a point no record covers is final-gathered as `photon` does and becomes
+            a candidate for the records round before the next block.
+
+Records are placed from the points of whole passes, in an order fixed by the points' sample
+indices, and each record's gather rays are numbered by the record: the record set and the
+image do not depend on the batch size or the number of workers.
+
+Where the cache applies: surfaces with one diffuse lobe (textured or not). Any other surface
+that stores photons is shaded as `photon` does (final gathering).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ... import rng
+from ...accel import offset_origin
+from ...scene import LOBE_DIFFUSE
+from ...sampling import frame_from_z, to_world
+from ...vec import dot, gatherer, take
+from ..base import Stage
+from ..path import PathTracer
+from ..photon.integrator import RADIANCE_BATCH, RADIANCE_STRIDE, PhotonIntegrator, _accumulate, _sample_rows
+from ..surface import towards
+from .cache import RecordOctree, Records, neighbour_clamp, spread_subset
+from .hemisphere import cell_directions, gradient_to_world, record_terms
+
+GATHER_MODES = ("photon", "path")
+ICACHE_VIEWS = ("full", "records")
+# The support a R_i of a record, in pixel footprints at the record (Krivanek and Gautron's
+# screen-space clamp; Mitsuba 0.6 uses 3 and 20 on R_i with a weight whose support is R_i)...
+MIN_PX, MAX_PX = 3.0, 20.0
+# ... and in scene radii: behind a curved mirror a footprint can explode (pbrt-v2 issue #36).
+MIN_WORLD, MAX_WORLD = 1e-4, 0.1
+MIN_COS = 0.2  # a footprint grows as 1 / cos(view angle); grazing views are capped at this cosine
+RECORD_RAYS = 1 << 16  # gather rays per work item of the records stage (cancel latency)
+MAX_ROUNDS = 12  # records rounds per placement; points still uncovered are final-gathered
+MAX_BLOCK = 16  # passes per pixels stage (records placed between blocks)
+DOT_PX = 1.5  # the record view: a record shows as a dot this many pixel footprints wide
+_FIELDS = ("position", "normal", "footprint", "prim", "key")
+
+
+def single_diffuse_materials(m) -> np.ndarray:
+    """(M,) bool: materials that are one diffuse lobe (any colour texture or normal map), whose
+    reflected light is albedo / pi x irradiance - what a record holds."""
+    count = np.bincount(m.lobe_material, minlength=len(m.kind))
+    diffuse = (m.lobe_kind == LOBE_DIFFUSE) & (m.lobe_layer < 0) & (m.lobe_opacity_tex < 0)
+    return (count == 1) & (np.bincount(m.lobe_material[diffuse], minlength=len(m.kind)) == 1)
+
+
+class IrradianceCacheIntegrator(PhotonIntegrator):
+    name = "icache"
+    label = "Irradiance Cache"
+    description = ("Irradiance caching with gradients: diffuse indirect light from records of photon-map "
+                   "final gathering, interpolated (biased, smooth)")
+
+    def __init__(self, scene):
+        super().__init__(scene)
+        from ...tracer import BatchLayout
+
+        s = scene.settings
+        self.layout = BatchLayout(scene, max(1024, s.batch_size // 2))
+        if s.icache_gather == "path":
+            self.n_global_items = 0  # gather rays trace paths: no global map
+        self.M = max(2, int(round(np.sqrt(s.icache_rays / 2.0))))
+        self.N = 2 * self.M  # Mitsuba 0.6's layout: N = 2M cells of about equal shape
+        self.records = Records.empty()
+        self.octree = None
+        self.candidates = {}  # render process: points still to cover
+        self.queue_len = 0
+        self.rounds = 0
+        self.first_id = 0
+        self.placements = 0
+        self.interpolated = self.fallback = 0
+        cam = scene.camera
+        left, right = cam.window[0], cam.window[1]
+        self.pixel_angle = abs(right - left) / max(s.width, 1)  # perspective: at unit distance
+
+    # --- render process -------------------------------------------------------------------
+    def stages(self, round: int):
+        if round == 0:
+            self._plan = self._rounds()
+        return next(self._plan, [])
+
+    def _rounds(self):
+        s = self.scene.settings
+        if self.n_global_items + self.n_caustic_items:
+            yield [Stage("photons", self.n_global_items + self.n_caustic_items, publish=True)]
+            if s.radiance_photons and s.icache_gather == "photon" and self.n_global_photons:
+                items = -(-(-(-self.n_global_photons // RADIANCE_STRIDE)) // RADIANCE_BATCH)
+                yield [Stage("radiance", items, publish=True)]
+        n = self.layout.n_pixels
+        if s.icache_view == "full" or s.icache_view == "records":
+            probe = self.pixel_stage(0, n)
+            yield [Stage("probe", probe.items, publish=True, start=0, stop=n)]
+            yield from self._place()
+        start, block = 0, 1
+        while start < s.samples:
+            stop = min(s.samples, start + block)
+            film = self.pixel_stage(start * n, stop * n)
+            yield [Stage("pixels", film.items, film=True, publish=True, start=film.start, stop=film.stop)]
+            yield from self._place()
+            start, block = stop, min(MAX_BLOCK, 2 * block) if start else 1
+
+    def _place(self):
+        """Records rounds until every candidate point is covered (or MAX_ROUNDS)."""
+        self.placements += 1
+        while self.queue_len:
+            yield [Stage("records", -(-self.queue_len // self._records_per_item()), publish=True)]
+
+    def _records_per_item(self) -> int:
+        return max(1, RECORD_RAYS // (self.M * self.N))
+
+    def reduce(self, stage, results):
+        if stage.name in ("photons", "radiance"):
+            return super().reduce(stage, results)
+        s = self.scene.settings
+        if stage.name in ("probe", "pixels"):
+            cat = {f: np.concatenate([r[f"miss.{f}"] for r in results]) for f in _FIELDS}
+            if stage.name == "pixels":
+                self.interpolated += sum(int(r["interpolated"][0]) for r in results)
+                self.fallback += sum(int(r["fallback"][0]) for r in results)
+            self.candidates, self.rounds = cat, 0
+            out = self._queue()
+        else:  # records
+            new = Records(**{f: np.concatenate([r[f] for r in results]) for f in results[0]})
+            self.first_id += len(new)
+            self.records = neighbour_clamp(self.records, new)
+            self.octree = RecordOctree(self.records, s.icache_a, s.icache_weight)
+            self.rounds += 1
+            out = {**{f"records.{k}": v for k, v in self.records.pack().items()}, **self._queue()}
+        self._count()
+        return out
+
+    def _queue(self) -> dict:
+        """The next records round's points: a well-spread subset of the candidates no record
+        covers, spaced MAX_PX footprints apart in the first round, half as far each round after
+        (so smooth regions get few, large records before detailed ones are filled in)."""
+        c = self.candidates
+        if len(c["position"]) and self.octree is not None:
+            _, _, count = self.octree.interpolate(c["position"], c["normal"], False)
+            c = {f: v[count == 0] for f, v in c.items()}
+        self.candidates = c
+        n = len(c["position"])
+        if n == 0 or self.rounds >= MAX_ROUNDS:
+            self.queue_len = 0
+            return {"queue.first_id": np.array([self.first_id], np.int64)}
+        px = max(MIN_PX, MAX_PX / 2 ** self.rounds)
+        keep = spread_subset(c["position"], px * c["footprint"], c["key"])
+        self.queue_len = len(keep)
+        return {"queue.first_id": np.array([self.first_id], np.int64),
+                **{f"queue.{f}": np.ascontiguousarray(v[keep]) for f, v in c.items()}}
+
+    def _count(self):
+        s = self.scene.settings
+        n = len(self.records)
+        mpix = s.width * s.height / 1e6
+        text = f"{n} records ({n / mpix:.0f} per megapixel)"
+        shaded = self.interpolated + self.fallback
+        if shaded:
+            text += f", {self.interpolated / shaded:.1%} of cached points interpolated"
+        self._counters["records"] = text
+
+    # --- tracing processes ----------------------------------------------------------------
+    def build(self, ctx) -> None:
+        super().build(ctx)
+        self.single_diffuse = single_diffuse_materials(self.scene.materials)
+        if self.scene.settings.icache_gather == "path":
+            self.path_tracer = PathTracer(self.scene, ctx.accel, ctx.lights)
+
+    def install(self, version, arrays):
+        super().install(version, arrays)
+        s = self.scene.settings
+        if "records.position" in arrays:
+            self.records = Records.from_packed({k.split(".", 1)[1]: v for k, v in arrays.items()
+                                                if k.startswith("records.")})
+            self.octree = RecordOctree(self.records, s.icache_a, s.icache_weight)
+        if "queue.first_id" in arrays:
+            self.queue = {k.split(".", 1)[1]: v for k, v in arrays.items() if k.startswith("queue.")}
+
+    def run(self, stage, item, stop=None):
+        if stage.name in ("photons", "radiance"):
+            return super().run(stage, item, stop)
+        if stage.name == "records":
+            return self._records(item, stop)
+        s, layout = self.scene.settings, self.layout
+        k = layout.paths(stage, item)
+        j = k % layout.n_pixels
+        self._probing = stage.name == "probe"
+        self._misses = []
+        self._shaded = [0, 0]
+        sampler = rng.Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
+        L = self._render(sampler, layout.pixel[j], k // layout.n_pixels, layout.px[j], layout.py[j], stop)
+        out = {f"miss.{f}": (np.concatenate([m[f] for m in self._misses]) if self._misses else
+                             np.zeros((0, 3) if f in ("position", "normal") else 0,
+                                      np.float64 if f in ("position", "normal", "footprint") else np.int64))
+               for f in _FIELDS}
+        if self._probing:
+            return out
+        return {"L": L, **out, "interpolated": np.array([self._shaded[0]]), "fallback": np.array([self._shaded[1]])}
+
+    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist):
+        """At cached points: direct light, caustics and the cached irradiance; elsewhere (other
+        materials, points no record covers) what `photon` does."""
+        s, mesh = self.scene.settings, self.scene.mesh
+        cached = self.single_diffuse[mesh.material[prim[x]]]
+        c, rest = x[cached], x[~cached]
+        if len(c):
+            at = gatherer(c, len(idx))
+            pc, nc = at(p), at(ns)
+            footprint = self._footprint(dist[c], dot(at(wo), nc))
+            if self._probing:
+                self._miss(c, pc, nc, footprint, prim, sample, pixel, idx)
+                return
+            E, _, count = (self.octree.interpolate(pc, nc, s.icache_gradients) if self.octree is not None
+                           else (np.zeros((len(c), 3)), None, np.zeros(len(c), np.int64)))
+            ok = count > 0
+            self._shaded[0] += int(ok.sum())
+            self._shaded[1] += int((~ok).sum())
+            if not ok.all():  # not covered: final-gathered now, a candidate for the next records round
+                miss = np.flatnonzero(~ok)
+                self._miss(c[miss], take(pc, miss), take(nc, miss), footprint[miss], prim, sample, pixel, idx)
+                rest = np.concatenate([rest, c[miss]])
+            hit = np.flatnonzero(ok)
+            if len(hit):
+                self._shade_cached(L, sampler, idx, c[hit], beta, p, ng_f, ns, prim, bsdf, depth, take(E, hit),
+                                   footprint[hit], sample, pixel)
+        if len(rest) == 0 or self._probing:
+            return
+        rest = np.sort(rest)
+        if s.icache_gather == "photon":
+            super()._shade_diffuse(L, sampler, idx, rest, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist)
+            return
+        # Path-traced gathering: direct light by light sampling, G gather rays that leave out
+        # the emission they find first (no photon maps: no caustic map either).
+        at = gatherer(rest, len(idx))
+        rows, bx = idx[rest], at(beta)
+        self._direct_emission(L, sampler, rows, rest, bx, at, p, ng_f, ns, prim, bsdf, depth, sample, pixel)
+        G = max(s.gather_rays, 1)
+        rep = np.repeat(np.arange(len(rest)), G)
+        pix, smp = pixel[rows][rep], sample[rows][rep] * G + np.tile(np.arange(G), len(rest))
+        bs = _sample_rows(bsdf, rest[rep], rng.Sampler(s.seed, pix, smp, s.pattern, domain=rng.GATHER).get(0, None, 3))
+        g = np.flatnonzero(bs.valid)
+        d = take(bs.wi, g)
+        o64 = take(p, rest[rep][g])
+        Lg = self.path_tracer.trace(rng.Sampler(s.seed, pix[g], smp[g], s.pattern, domain=rng.GATHER), o64,
+                                    offset_origin(o64, towards(take(ng_f, rest[rep][g]), d)), d, None,
+                                    prim[rest[rep][g]], first_emission=False, max_depth=max(s.max_depth - 1, 0))
+        _accumulate(L, rows[rep][g], take(bx, rep[g]) * take(bs.weight, g) * Lg / G)
+
+    def _shade_cached(self, L, sampler, idx, c, beta, p, ng_f, ns, prim, bsdf, depth, E, footprint, sample, pixel):
+        """Caustics, direct light and the cached irradiance E (K,3) at the points c."""
+        s = self.scene.settings
+        at = gatherer(c, len(idx))
+        rows, bx = idx[c], at(beta)
+        albedo = at(bsdf.reflectance)
+        if s.icache_view == "records":
+            _accumulate(L, rows, self._record_dots(at(p), footprint) + 0.5 * bx * albedo * E / np.pi)
+            return
+        if self.caustic_map is not None and len(self.caustic_map):
+            Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), lambda r, wi: bsdf.eval(wi, c[r])[0], s.photon_k,
+                                              self.r_caustic, kernel=s.photon_kernel, min_count=1,
+                                              accept=self.visible(at(p), at(ng_f), self.caustic_map))
+            _accumulate(L, rows, bx * Lc)
+        self._direct_emission(L, sampler, rows, c, bx, at, p, ng_f, ns, prim, bsdf, depth, sample, pixel)
+        _accumulate(L, rows, bx * albedo * E * (1.0 / np.pi))
+
+    def _direct_emission(self, L, sampler, rows, x, bx, at, p, ng_f, ns, prim, bsdf, depth, sample, pixel):
+        """Direct light at points x by a light sample and a BSDF sample that only looks for
+        emission, combined by the balance heuristic (the records leave that emission out; light
+        sampling alone gives fireflies next to large emitters). The BSDF sample's stream is the
+        GATHER domain's pixels W*H and up, which no gather ray uses."""
+        s = self.scene.settings
+        self._direct_light(L, sampler, rows, x, bx, at, p, ng_f, ns, prim, bsdf, depth, 1)
+        u = rng.Sampler(s.seed, pixel[rows] + s.width * s.height, sample[rows], s.pattern, domain=rng.GATHER)
+        _accumulate(L, rows, bx * self._gather(u, x, p, ng_f, prim, bsdf, 1, emission_only=True))
+
+    def _record_dots(self, pc, footprint):
+        """(K,3) white where a record lies within DOT_PX / 2 footprints of the point."""
+        from pykdtree.kdtree import KDTree
+
+        if getattr(self, "_dots", (None,))[0] is not self.records:
+            self._dots = (self.records, KDTree(np.ascontiguousarray(self.records.position)))
+        dist, _ = self._dots[1].query(np.ascontiguousarray(pc), k=1)
+        return np.where((dist <= 0.5 * DOT_PX * footprint)[:, None], 1.0, 0.0) * np.ones(3)
+
+    def _footprint(self, dist, cos_view):
+        """World size of a pixel at path length dist, seen at cos_view."""
+        s = 1.0 if self.scene.camera.ortho else dist
+        return s * self.pixel_angle / np.maximum(np.abs(cos_view), MIN_COS)
+
+    def _miss(self, rows, pc, nc, footprint, prim, sample, pixel, idx):
+        """Points to cover with records: rows of the batch's live paths idx; their key (the
+        order of preference in spread_subset) is a hash of (sample, pixel)."""
+        r = idx[rows]
+        key = rng._mix((sample[r].astype(np.uint64) << np.uint64(32)) ^ pixel[r].astype(np.uint64))
+        self._misses.append({"position": pc, "normal": nc, "footprint": footprint,
+                             "prim": prim[rows].astype(np.int64), "key": key.view(np.int64)})
+
+    def _records(self, item, stop):
+        """Records at queue points [item x per item, ...): M x N gather rays each."""
+        s, ctx = self.scene.settings, self.ctx
+        q = self.queue
+        per = self._records_per_item()
+        rows = np.arange(item * per, min((item + 1) * per, len(q["position"])))
+        K, M, N = len(rows), self.M, self.N
+        MN = M * N
+        ids = int(q["first_id"][0]) + rows
+        sampler = rng.Sampler(s.seed, np.repeat(ids, MN), np.tile(np.arange(MN), K), s.pattern, domain=rng.RECORDS)
+        p = np.asarray(q["position"], np.float64)[rows]
+        n = np.asarray(q["normal"], np.float64)[rows]
+        t, b = frame_from_z(n)
+        local = cell_directions(M, N, sampler.get(0, None, 2).reshape(K, M, N, 2)).reshape(-1, 3)
+        rep = np.repeat(np.arange(K), MN)
+        d = to_world(local, take(t, rep), take(b, rep), take(n, rep))
+        o64 = take(p, rep)
+        o32 = offset_origin(o64, take(n, rep))
+        skip = np.asarray(q["prim"])[rows][rep]
+        t_first = np.full(K * MN, np.inf)
+        if s.icache_gather == "path":
+            Lr = self.path_tracer.trace(sampler, o64, o32, d, None, skip, stop, first_emission=False,
+                                        max_depth=max(s.max_depth - 1, 0), t_first=t_first)
+        else:
+            Lr = self._trace_gather(sampler, K * MN, np.arange(K * MN), np.ones((K * MN, 3)), d, o64, o32, skip,
+                                    t_first=t_first)
+        E, R, grad_r, grad_t = record_terms(Lr.reshape(K, M, N, 3), t_first.reshape(K, M, N))
+        grad_r = gradient_to_world(grad_r, (t, b, n))
+        grad_t = gradient_to_world(grad_t, (t, b, n))
+        return {"position": p, "normal": n, "E": E, "grad_r": grad_r,
+                **self._clamp_radius(E, R, grad_t, np.asarray(q["footprint"])[rows])}
+
+    def _clamp_radius(self, E, R, grad_t, footprint):
+        """R_i from the harmonic mean, limited by the gradient (R <= E / |grad_t E|, per channel;
+        Krivanek et al. 2008), its support a R_i clamped to MIN_PX..MAX_PX pixel footprints
+        and MIN_WORLD..MAX_WORLD scene radii. A record pushed up to the minimum gets its
+        translational gradient scaled down by the same factor (Mitsuba 0.6), so it does not
+        extrapolate over a range its rays did not see. Returns the Records fields radius,
+        radius_unclamped (before the footprint clamps: neighbour clamping works on it),
+        radius_min and grad_t."""
+        a = self.scene.settings.icache_a
+        g = np.sqrt(np.einsum("rcx,rcx->rc", grad_t, grad_t))
+        limit = np.where(g > 0, np.divide(E, g, out=np.full(E.shape, np.inf), where=g > 0), np.inf).min(axis=1)
+        lo = np.maximum(MIN_PX * footprint, MIN_WORLD * self.radius) / a
+        hi = np.maximum(np.minimum(MAX_PX * footprint, MAX_WORLD * self.radius) / a, lo)
+        R = np.minimum(np.minimum(R, limit), hi)
+        clamped = np.maximum(R, lo)
+        shrink = np.divide(R, clamped, out=np.ones_like(R), where=clamped > R)
+        return {"radius": clamped, "radius_unclamped": R, "radius_min": lo, "grad_t": grad_t * shrink[:, None, None]}
