@@ -30,9 +30,11 @@ def take(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
 
 
 def gatherer(rows: np.ndarray, n: int):
-    """A function a -> a[rows] for arrays of n rows; the identity (no copy) when the sorted,
-    unique rows are all n of them - the common case in a batch."""
-    return (lambda a: a) if len(rows) == n else (lambda a: take(a, rows))
+    """A function a -> a[rows] for arrays of n rows; the identity (no copy) when rows are
+    0 .. n-1 in order - the common case in a batch (rows may also repeat: gather rays)."""
+    everyone = len(rows) == n and (n == 0 or (rows[0] == 0 and rows[-1] == n - 1
+                                               and bool(np.all(np.diff(rows) == 1))))
+    return (lambda a: a) if everyone else (lambda a: take(a, rows))
 
 
 def scale(v: np.ndarray, s) -> np.ndarray:

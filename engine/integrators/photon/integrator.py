@@ -284,7 +284,8 @@ class PhotonIntegrator(Integrator):
             _accumulate(L, rows, bx * Lc)
         if view == "caustic":
             return
-        self._direct_light(L, sampler, rows, x, bx, at, p, ng_f, ns, prim, bsdf, depth, G)
+        self._direct_light(L, sampler.get(1 + _GROUPS * depth + _LIGHT, rows, 3), rows, x, bx, at, p, ng_f, ns, prim,
+                           bsdf, G)
         if G == 0:
             return
         # Final gathering: G rays per point, stratified over the pixel's camera samples.
@@ -307,13 +308,13 @@ class PhotonIntegrator(Integrator):
             return ~self.ctx.accel.occluded(o, t)
         return accept
 
-    def _direct_light(self, L, sampler, rows, x, bx, at, p, ng_f, ns, prim, bsdf, depth, G):
-        """One light sample at the diffuse points x, weighted by the balance heuristic against
-        G BSDF samples (Veach's multi-sample MIS; G = 0: light sampling alone)."""
+    def _direct_light(self, L, u_light, rows, x, bx, at, p, ng_f, ns, prim, bsdf, G):
+        """One light sample (uniforms u_light (K,3)) at each diffuse point x (K,) (rows of L),
+        weighted by the balance heuristic against G BSDF samples (Veach's multi-sample MIS;
+        G = 0: light sampling alone)."""
         lights = self.ctx.lights
         if lights.empty:
             return
-        u_light = sampler.get(1 + _GROUPS * depth + _LIGHT, rows, 3)
         ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2])
         f, pdf_b = bsdf.eval(ls.wi, x)
         cos_i = np.abs(dot(ls.wi, at(ns)))

@@ -27,7 +27,7 @@ import numpy as np
 from ... import rng
 from ...vec import gatherer
 from ..base import Stage
-from .integrator import PHOTON_BATCH, PHOTON_BYTES, PhotonIntegrator, _accumulate, _no_photons
+from .integrator import _GROUPS, _LIGHT, PHOTON_BATCH, PHOTON_BYTES, PhotonIntegrator, _accumulate, _no_photons
 from .photon_map import PhotonMap
 
 PPM_RADIUS = 0.01  # x scene radius: the first pass's radius when the setting is 0
@@ -140,7 +140,8 @@ class ProgressivePhotonIntegrator(PhotonIntegrator):
         s = self.scene.settings
         at = gatherer(x, len(idx))
         rows, bx = idx[x], at(beta)
-        self._direct_light(L, sampler, rows, x, bx, at, p, ng_f, ns, prim, bsdf, depth, 1)
+        self._direct_light(L, sampler.get(1 + _GROUPS * depth + _LIGHT, rows, 3), rows, x, bx, at, p, ng_f, ns, prim,
+                           bsdf, 1)
         u = rng.Sampler(s.seed, pixel[rows], sample[rows], s.pattern, domain=rng.GATHER)
         _accumulate(L, rows, bx * self._gather(u, x, p, ng_f, prim, bsdf, 1, emission_only=True))
         phi, count = self.pass_map.gather_radius(at(p), at(ng_f), self._radius_path[rows],
