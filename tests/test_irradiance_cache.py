@@ -4,14 +4,17 @@ References are written here: fields whose interpolation is exact (constant, line
 surface, linear in the normal), weights at hand-computed distances, brute force over all pairs
 for the octree, the all-pairs closure min_j (R_j + |p_i - p_j|) for neighbour clamping.
 
-Deliberate bugs these tests catch (checked by patching the modules one at a time): the octree
-level one too coarse or too fine for its balls (2 s -> s), stored in one cell instead of all
-the cells its box meets, the query's +1 offset dropped; the extrapolation without the
-translational gradient; Ward's threshold <= instead of <, a missing eps floor, the Tabellion
-kappa = 1 / a; the front test on n alone, its sign flipped, no tolerance; the neighbour clamp
-only one way, with clamped instead of original radii of the new records, radius_min ignored;
-spread_subset keeping all cell candidates, conflicts on spacing / 4, the cell candidate by
-input order instead of key.
+Deliberate bugs these tests catch (checked by patching the modules one at a time, 26 of 26):
+octree balls one level too fine (edge >= s instead of 2 s), stored in one cell instead of all
+the cells their box meets, the query's +1 offset dropped, a chunk boundary off by one, a
+distance filter twice too loose; extrapolation without the translational or the rotational
+gradient; Ward's eps without its floor or with (1 - n . n_i) unsquare-rooted, Tabellion's kappa
+= 1 / a or its 10-degree constant at 12 degrees; the front test on n_i or n alone, its sign
+flipped, without tolerance; no division by the weight sum; neighbour clamping one way only,
+ignoring radius_min, or missing the centres inside the new records' balls; spread_subset
+without the conflict step, conflicts at spacing / 4 or on min(spacing) instead of max, the cell
+candidate or the priority by input order instead of key, a coarser grid; a wrong radius_min
+default.
 """
 import numpy as np
 import pytest
@@ -328,8 +331,12 @@ def test_spread_subset_prefers_small_keys():
     p = np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [5.0, 0.0, 0.0]])
     assert list(C.spread_subset(p, 1.0, np.array([2, 1, 3], np.uint64))) == [1, 2]
     assert list(C.spread_subset(p, 1.0, np.array([1, 2, 3], np.uint64))) == [0, 2]
+    # two candidates of neighbouring cells that conflict: the smaller key wins
+    p = np.array([[0.99, 0.5, 0.5], [1.01, 0.5, 0.5]])
+    assert list(C.spread_subset(p, 1.0, np.array([5, 4], np.uint64))) == [1]
+    assert list(C.spread_subset(p, 1.0, np.array([4, 5], np.uint64))) == [0]
     with pytest.raises(ValueError, match="spacing"):
-        C.spread_subset(p, 0.0, np.arange(3))
+        C.spread_subset(p, 0.0, np.arange(2))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -358,4 +365,28 @@ def test_pack_round_trip_on_read_only_views():
                          C.RecordOctree(rec, 0.2).interpolate(p, n)):
         assert np.array_equal(got, want)
     out = C.neighbour_clamp(back, _record([0.5, 0.5, 0.0], R=0.01))
-    assert len(out) == 201 and np.all(out.radius <= rec.concat(_record([0.5, 0.5, 0], R=0.01)).radius)
+    before = rec.concat(_record([0.5, 0.5, 0.0], R=0.01)).radius
+    assert len(out) == 201 and np.all(out.radius <= before) and np.any(out.radius < before)
+
+
+@pytest.mark.parametrize("weight", C.WEIGHTS)
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_front_test_keeps_records_on_a_sphere(weight, side):
+    """On a sphere (outside, side = 1, or inside, side = -1) the chord p - p_i is perpendicular
+    to n + n_i, so no record is rejected as being in front, however curved the surface."""
+    rng = np.random.default_rng(9)
+    u = rng.normal(size=(400, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    rec = C.Records(u, side * u, np.ones((400, 3)), np.full(400, 1.0), np.zeros((400, 3, 3)),
+                    np.zeros((400, 3, 3)))
+    q = rng.normal(size=(2000, 3))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    a = 0.3
+    count = C.RecordOctree(rec, a, weight).interpolate(q, side * q)[2]
+    if weight == "ward":
+        expect = C.ward_error(q[:, None], side * q[:, None], u[None], side * u[None], 1.0) < a
+    else:
+        expect = C.tabellion_weight(q[:, None], side * q[:, None], u[None], side * u[None], 1.0,
+                                    a) > 0
+    assert expect.sum() > 1000
+    assert np.array_equal(count, expect.sum(axis=1))

@@ -95,7 +95,8 @@ class Records:
         for f in fields(self):
             if not np.all(np.isfinite(getattr(self, f.name))):
                 raise ValueError(f"Records.{f.name} has non-finite values")
-        if np.any(self.radius < 0) or np.any(self.radius_unclamped < 0) or np.any(self.radius_min < 0):
+        if min(self.radius.min(initial=0), self.radius_unclamped.min(initial=0),
+               self.radius_min.min(initial=0)) < 0:
             raise ValueError("record radii must be >= 0")
 
     @classmethod
@@ -184,25 +185,28 @@ class RecordOctree:
         return len(self.records)
 
     def _weights(self, p, n):
-        """Yield (lo, hi, rows, recs, w) for the records that pass the weight test at p[lo:hi]."""
-        rec = self.records
-        for lo, hi, rows, recs, dist in self.tree.chunks(p):
-            pr, nr, pi, ni = p[lo:hi][rows], n[lo:hi][rows], rec.position[recs], rec.normal[recs]
-            R = rec.radius[recs]
-            if self.weight == "ward":
-                eps = ward_error(pr, nr, pi, ni, R)
-                use = eps < self.a
+        """Yield (lo, hi, rows, recs, w, diff, nr) for the records that pass the weight test at
+        p[lo:hi]: diff = p - p_i and nr = n of each pair."""
+        rec, a = self.records, self.a
+        for lo, hi, rows, recs, diff, _ in self.tree.chunks(p):
+            nr = np.take(n[lo:hi], rows, axis=0)        # np.take: faster than fancy indexing
+            ni, R = np.take(rec.normal, recs, axis=0), np.take(rec.radius, recs)
+            if self.weight == "ward":                  # p - p_i given as diff - 0
+                eps = ward_error(diff, nr, 0.0, ni, R)
+                use = eps < a
                 w = 1.0 / np.maximum(eps, WARD_EPS_MIN)
             else:
-                w = tabellion_weight(pr, nr, pi, ni, R, self.a)
+                w = tabellion_weight(diff, nr, 0.0, ni, R, a)
                 use = w > 0.0
-            use &= front_offset(pr, nr, pi, ni) >= -FRONT_TOLERANCE * self.a * R
-            yield lo, hi, rows[use], recs[use], w[use]
+            use &= front_offset(diff, nr, 0.0, ni) >= -FRONT_TOLERANCE * a * R
+            use = np.flatnonzero(use)
+            yield (lo, hi, rows[use], recs[use], w[use], np.take(diff, use, axis=0),
+                   np.take(nr, use, axis=0))
 
     def weights(self, p, n):
         """(rows, recs, w): every (point, record) pair that passes the weight test, its weight."""
         p, n = as_points(p, "p"), as_points(n, "n")
-        parts = [(lo + r, i, w) for lo, _, r, i, w in self._weights(p, n)]
+        parts = [(lo + r, i, w) for lo, _, r, i, w, _, _ in self._weights(p, n)]
         if not parts:
             return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
         return tuple(np.concatenate(x) for x in zip(*parts))
@@ -221,13 +225,13 @@ class RecordOctree:
         rec = self.records
         C = rec.E.shape[1]
         E, wsum, count = np.zeros((len(p), C)), np.zeros(len(p)), np.zeros(len(p), np.int64)
-        for lo, hi, rows, recs, w in self._weights(p, n):
-            if gradients:
-                value = extrapolate(rec.E[recs], rec.grad_r[recs], rec.grad_t[recs],
-                                    rec.position[recs], rec.normal[recs],
-                                    p[lo:hi][rows], n[lo:hi][rows])
+        for lo, hi, rows, recs, w, diff, nr in self._weights(p, n):
+            if gradients:                      # p - p_i given as diff - 0
+                E_i, grad_r, grad_t, n_i = (np.take(x, recs, axis=0) for x in
+                                            (rec.E, rec.grad_r, rec.grad_t, rec.normal))
+                value = extrapolate(E_i, grad_r, grad_t, 0.0, n_i, diff, nr)
             else:
-                value = rec.E[recs]
+                value = np.take(rec.E, recs, axis=0)
             m = hi - lo
             for c in range(C):
                 E[lo:hi, c] = np.bincount(rows, weights=w * value[:, c], minlength=m)
@@ -244,7 +248,7 @@ class RecordOctree:
 # ----------------------------------------------------------------------------------------------
 # Neighbour clamping
 
-def neighbour_clamp(records, new):
+def neighbour_clamp(records, new, a=None, weight=None):
     """The whole record set, `records` then `new`, with R_i <= R_j + |p_i - p_j| for all pairs.
 
     The constraint is applied to radius_unclamped, both ways between new and existing records
@@ -254,20 +258,25 @@ def neighbour_clamp(records, new):
     record min_j (R_j + |p_i - p_j|) over all records), so it does not depend on the order of
     the records, nor on how they were split into batches, and clamping again changes nothing.
     Only pairs with |p_i - p_j| < max(R_i, R_j) can clamp; they are found as the new centres
-    inside the balls of all records plus all centres inside the new records' balls.
+    inside the balls of all records plus all centres inside the new records' balls. Because
+    every such pair is clamped, the interpolation settings a and weight (which would define
+    "overlapping" supports) do not enter; they are accepted so that callers need not change.
     """
     union = records.concat(new)
     m = len(records)
     if len(new) == 0:
         return union
     R = union.radius_unclamped
-    new_in, any_ball, _ = BallOctree(union.position, R).candidates(new.position)
-    any_in, new_ball, _ = BallOctree(new.position, R[m:]).candidates(union.position)
-    i, j = np.concatenate([new_in + m, new_ball + m]), np.concatenate([any_ball, any_in])
-    d = np.linalg.norm(union.position[i] - union.position[j], axis=1)
     clamped = R.copy()
-    np.minimum.at(clamped, i, R[j] + d)
-    np.minimum.at(clamped, j, R[i] + d)
+
+    def clamp(i, j, d):
+        np.minimum.at(clamped, i, R[j] + d)
+        np.minimum.at(clamped, j, R[i] + d)
+
+    for lo, _, new_in, any_ball, _, d in BallOctree(union.position, R).chunks(new.position):
+        clamp(m + lo + new_in, any_ball, d)
+    for lo, _, any_in, new_ball, _, d in BallOctree(new.position, R[m:]).chunks(union.position):
+        clamp(m + new_ball, lo + any_in, d)
     radius = np.minimum(union.radius, np.maximum(clamped, union.radius_min))
     return replace(union, radius=radius, radius_unclamped=clamped)
 

@@ -105,17 +105,19 @@ class BallOctree:
         return start, np.where(valid, stop - start, 0)
 
     def chunks(self, q, max_pairs=None):
-        """Yield (lo, hi, rows, balls, dist): every pair of a point q[lo:hi] and a ball holding it.
+        """Yield (lo, hi, rows, balls, diff, dist): every pair of a point q[lo:hi] and a ball
+        holding it.
 
-        rows index q[lo:hi] (0-based within the chunk), dist = |q - c| <= radius. A chunk
-        holds at most max_pairs candidates unless one point alone has more; pairs come sorted
-        by row, and within a row by level, then ball index.
+        rows index q[lo:hi] (0-based within the chunk), diff = q - c, dist = |diff| <= radius.
+        A chunk holds at most max_pairs candidates unless one point alone has more. Pairs come
+        sorted by row, and within a row by level, then ball index.
         """
         q = as_points(q, "points")
         max_pairs = MAX_PAIRS if max_pairs is None else max_pairs
         if len(self.keys) == 0:
             if len(q):
-                yield 0, len(q), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+                z = np.zeros(0, np.int64)
+                yield 0, len(q), z, z, np.zeros((0, 3)), np.zeros(0)
             return
         for b0 in range(0, len(q), BLOCK_POINTS):
             qb = q[b0:b0 + BLOCK_POINTS]
@@ -126,9 +128,11 @@ class BallOctree:
                 before = per_point[lo - 1] if lo else 0
                 hi = max(int(np.searchsorted(per_point, before + max_pairs, side="right")), lo + 1)
                 rows, balls = self._expand(start[lo:hi], count[lo:hi])
-                dist = np.linalg.norm(qb[lo:hi][rows] - self.centre[balls], axis=1)
-                keep = dist <= self.radius[balls]
-                yield b0 + lo, b0 + hi, rows[keep], balls[keep], dist[keep]
+                diff = np.take(qb[lo:hi], rows, axis=0) - np.take(self.centre, balls, axis=0)
+                d2 = np.einsum("ij,ij->i", diff, diff)
+                keep = np.flatnonzero(d2 <= np.take(self.radius, balls) ** 2)
+                yield (b0 + lo, b0 + hi, rows[keep], balls[keep], np.take(diff, keep, axis=0),
+                       np.sqrt(d2[keep]))
                 lo = hi
 
     def _expand(self, start, count):
@@ -141,7 +145,7 @@ class BallOctree:
 
     def candidates(self, q):
         """(rows, balls, dist): all pairs with point q[row] inside ball `ball` (|q - c| <= s)."""
-        parts = [(lo + r, b, d) for lo, _, r, b, d in self.chunks(q)]
+        parts = [(lo + r, b, d) for lo, _, r, b, _, d in self.chunks(q)]
         if not parts:
             return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
         return tuple(np.concatenate(a) for a in zip(*parts))
