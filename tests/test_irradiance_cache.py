@@ -390,3 +390,23 @@ def test_front_test_keeps_records_on_a_sphere(weight, side):
                                     a) > 0
     assert expect.sum() > 1000
     assert np.array_equal(count, expect.sum(axis=1))
+
+
+def test_interpolation_does_not_depend_on_batching(monkeypatch):
+    """Bit-identical results for any split of the query points and any chunk size: each point's
+    sum runs over its records in the tree's order (so images do not depend on batch size)."""
+    rng = np.random.default_rng(10)
+    rec = _plane_records(300, rng, radius=10.0 ** rng.uniform(-1.5, 0.0, 300))
+    rec = C.Records(rec.position, rec.normal, rng.random((300, 3)), rec.radius,
+                    rng.normal(size=(300, 3, 3)), rng.normal(size=(300, 3, 3)))
+    cache = C.RecordOctree(rec, 0.3)
+    p, _ = _plane_points(3000, rng)
+    n = np.tile(Z, (3000, 1)) + rng.normal(0.0, 0.05, (3000, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    whole = cache.interpolate(p, n)
+    assert np.mean(whole[2] > 1) > 0.5
+    monkeypatch.setattr(O, "MAX_PAIRS", 50)
+    monkeypatch.setattr(O, "BLOCK_POINTS", 333)
+    parts = [cache.interpolate(p[k], n[k]) for k in np.array_split(np.arange(3000), 7)]
+    for got, want in zip((np.concatenate(x) for x in zip(*parts)), whole):
+        assert np.array_equal(got, want)

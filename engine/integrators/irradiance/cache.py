@@ -314,9 +314,9 @@ def spread_subset(p, spacing, key):
     if N == 0:
         return np.zeros(0, np.int64)
     # 1. the candidate of each cell: first in (bucket, cell, key, position) order
-    bucket = np.floor(4.0 * np.log2(s))
+    bucket = np.floor(4.0 * np.log2(s)).astype(np.int64)
     x = p / np.exp2(bucket / 4.0)[:, None]
-    if np.abs(x).max() >= 2.0 ** 62:
+    if np.abs(x).max() >= 2.0 ** 52:                   # cells exact in float64
         raise ValueError("spread_subset: spacing too small for the points' coordinates")
     cell = np.floor(x).astype(np.int64)
     by_cell = np.lexsort((p[:, 2], p[:, 1], p[:, 0], key, cell[:, 2], cell[:, 1], cell[:, 0],
