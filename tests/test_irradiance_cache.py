@@ -410,3 +410,17 @@ def test_interpolation_does_not_depend_on_batching(monkeypatch):
     parts = [cache.interpolate(p[k], n[k]) for k in np.array_split(np.arange(3000), 7)]
     for got, want in zip((np.concatenate(x) for x in zip(*parts)), whole):
         assert np.array_equal(got, want)
+
+
+def test_empty_sets():
+    empty = C.Records.empty()
+    p, n = np.array([[0.0, 0.0, 0.0]]), Z[None]
+    E, wsum, count = C.RecordOctree(empty, 0.2).interpolate(p, n)
+    assert E.shape == (1, 3) and np.all(E == 0) and wsum[0] == 0 and count[0] == 0
+    E, wsum, count = C.RecordOctree(_record([0.0, 0.0, 0.0]), 0.2).interpolate(np.zeros((0, 3)),
+                                                                               np.zeros((0, 3)))
+    assert E.shape == (0, 3) and wsum.shape == (0,) and count.dtype == np.int64
+    assert len(C.neighbour_clamp(empty, empty)) == 0
+    assert len(C.spread_subset(np.zeros((0, 3)), 1.0, np.zeros(0, np.uint64))) == 0
+    rows, recs = C.RecordOctree(empty, 0.2).overlapping(p, np.ones(1))
+    assert len(rows) == len(recs) == 0
