@@ -248,7 +248,7 @@ class RecordOctree:
 # ----------------------------------------------------------------------------------------------
 # Neighbour clamping
 
-def neighbour_clamp(records, new, a=None, weight=None):
+def neighbour_clamp(records, new):
     """The whole record set, `records` then `new`, with R_i <= R_j + |p_i - p_j| for all pairs.
 
     The constraint is applied to radius_unclamped, both ways between new and existing records
@@ -258,9 +258,8 @@ def neighbour_clamp(records, new, a=None, weight=None):
     record min_j (R_j + |p_i - p_j|) over all records), so it does not depend on the order of
     the records, nor on how they were split into batches, and clamping again changes nothing.
     Only pairs with |p_i - p_j| < max(R_i, R_j) can clamp; they are found as the new centres
-    inside the balls of all records plus all centres inside the new records' balls. Because
-    every such pair is clamped, the interpolation settings a and weight (which would define
-    "overlapping" supports) do not enter; they are accepted so that callers need not change.
+    inside the balls of all records plus all centres inside the new records' balls. (So the
+    interpolation settings a and weight, which define overlapping supports, do not enter.)
     """
     union = records.concat(new)
     m = len(records)
