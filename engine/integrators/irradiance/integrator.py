@@ -29,6 +29,7 @@ import numpy as np
 
 from ... import rng
 from ...accel import offset_origin
+from ...errors import Cancelled
 from ...scene import LOBE_DIFFUSE
 from ...sampling import frame_from_z, to_world
 from ...vec import dot, gatherer, take
@@ -150,7 +151,7 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
 
     def _queue(self) -> dict:
         """The next records round's points: a well-spread subset of the candidates no record
-        covers, spaced MAX_PX footprints apart in the first round, half as far each round after
+        covers, MAX_PX footprints apart in the first round, half as far each round after
         (so smooth regions get few, large records before detailed ones are filled in)."""
         c = self.candidates
         if len(c["position"]) and self.octree is not None:
@@ -161,8 +162,11 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         if n == 0 or self.rounds >= MAX_ROUNDS:
             self.queue_len = 0
             return {"queue.first_id": np.array([self.first_id], np.int64)}
-        px = max(MIN_PX, MAX_PX / 2 ** self.rounds)
-        keep = spread_subset(c["position"], px * c["footprint"], c["key"])
+        # spread_subset keeps points at least spacing / 2 apart: twice the support wanted,
+        # down to the smallest support, then that (records a little closer than needed, so
+        # that the last gaps close in a round or two, not one record per gap per round).
+        px = MAX_PX / 2 ** self.rounds
+        keep = spread_subset(c["position"], (2.0 * px if px > MIN_PX else MIN_PX) * c["footprint"], c["key"])
         self.queue_len = len(keep)
         return {"queue.first_id": np.array([self.first_id], np.int64),
                 **{f"queue.{f}": np.ascontiguousarray(v[keep]) for f, v in c.items()}}
@@ -340,6 +344,8 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         o32 = offset_origin(o64, take(n, rep))
         skip = np.asarray(q["prim"])[rows][rep]
         t_first = np.full(K * MN, np.inf)
+        if stop is not None and stop.is_set():
+            raise Cancelled()
         if s.icache_gather == "path":
             Lr = self.path_tracer.trace(sampler, o64, o32, d, None, skip, stop, first_emission=False,
                                         max_depth=max(s.max_depth - 1, 0), t_first=t_first)
@@ -363,8 +369,9 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         a = self.scene.settings.icache_a
         g = np.sqrt(np.einsum("rcx,rcx->rc", grad_t, grad_t))
         limit = np.where(g > 0, np.divide(E, g, out=np.full(E.shape, np.inf), where=g > 0), np.inf).min(axis=1)
-        lo = np.maximum(MIN_PX * footprint, MIN_WORLD * self.radius) / a
-        hi = np.maximum(np.minimum(MAX_PX * footprint, MAX_WORLD * self.radius) / a, lo)
+        world_max = MAX_WORLD * self.radius / a
+        lo = np.minimum(np.maximum(MIN_PX * footprint, MIN_WORLD * self.radius) / a, world_max)
+        hi = np.maximum(np.minimum(MAX_PX * footprint / a, world_max), lo)
         R = np.minimum(np.minimum(R, limit), hi)
         clamped = np.maximum(R, lo)
         shrink = np.divide(R, clamped, out=np.ones_like(R), where=clamped > R)
