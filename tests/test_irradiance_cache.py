@@ -136,7 +136,7 @@ def test_octree_candidates_equal_brute_force(monkeypatch):
     rows, balls, d = tree.candidates(q)
     assert len(rows) == len(brute) and _pairs(rows, balls) == brute
     assert np.allclose(d, dist[rows, balls], rtol=0, atol=1e-15)
-    monkeypatch.setattr(O, "MAX_PAIRS", 7)                              # many small chunks
+    monkeypatch.setattr(O, "MAX_PAIRS", 100)                            # many small chunks
     monkeypatch.setattr(O, "BLOCK_POINTS", 100)
     rows2, balls2, _ = tree.candidates(q)
     assert np.array_equal(rows2, rows) and np.array_equal(balls2, balls)
