@@ -29,7 +29,7 @@ Photon mapping (integrators photon and ppm; radii in metres, 0 = scene-relative 
     --gather-rays N      final-gathering rays per camera sample
     --radiance-photons on|off   gather rays read precomputed irradiance (Christensen 1999)
     --photon-view NAME   full, or a debug view: global (the global map seen directly), caustic,
-                         positions (where photons landed)
+                         positions (where photons landed), indirect (final gathering alone)
     --ppm-radius R, --ppm-alpha A   progressive photon mapping: first radius, radius shrink (0..1)
 Irradiance cache (integrator icache; also reads the photon options):
     --icache-a A         accuracy a: records used where Ward's error < a (0.05..0.5; seed: 0.1-0.35)
@@ -37,7 +37,7 @@ Irradiance cache (integrator icache; also reads the photon options):
     --icache-gradients on|off   extrapolate records by their gradients
     --icache-weight NAME ward or tabellion
     --icache-gather NAME photon (the global map) or path (path-traced gather rays)
-    --icache-view NAME   full, or records (record positions as dots)
+    --icache-view NAME   full, or records (record positions as dots), indirect (the cache alone)
 
 The .blend is only read: settings are changed on the loaded copy in memory and nothing
 is saved. The image is written to a hidden temporary file beside the output, checked, and
@@ -150,7 +150,7 @@ PHOTON_OPTIONS = (
     ("--caustic-radius", "caustic_radius", _metres, "largest caustic-map search radius (m, 0 = auto)"),
     ("--gather-rays", "gather_rays", _non_negative_int, "final-gathering rays per camera sample"),
     ("--radiance-photons", "radiance_photons", _on_off, "on|off: gather rays read radiance photons"),
-    ("--photon-view", "photon_view", str, "full, or a debug view: global, caustic, positions"),
+    ("--photon-view", "photon_view", str, "full, or a debug view: global, caustic, positions, indirect"),
     ("--photon-kernel", "photon_kernel", str, "uniform, cone or epanechnikov"),
     ("--ppm-radius", "ppm_radius", _metres, "progressive photon mapping: first radius (m, 0 = auto)"),
     ("--ppm-alpha", "ppm_alpha", _alpha, "progressive photon mapping: radius shrink, in (0, 1)"),
@@ -159,7 +159,7 @@ PHOTON_OPTIONS = (
     ("--icache-gradients", "icache_gradients", _on_off, "on|off: extrapolate records by their gradients"),
     ("--icache-weight", "icache_weight", str, "irradiance cache: ward or tabellion"),
     ("--icache-gather", "icache_gather", str, "irradiance cache: photon or path"),
-    ("--icache-view", "icache_view", str, "irradiance cache: full, or records"),
+    ("--icache-view", "icache_view", str, "irradiance cache: full, records or indirect"),
 )
 ENUM_OPTIONS = ("photon_view", "photon_kernel", "icache_weight", "icache_gather", "icache_view")
 

@@ -201,7 +201,7 @@ def has_light(scene: Scene) -> bool:
                     and (getattr(world, "image", None) is None or np.max(np.abs(world.image)) > 0)))
 
 
-PHOTON_VIEWS = ("full", "global", "caustic", "positions")
+PHOTON_VIEWS = ("full", "global", "caustic", "positions", "indirect")
 
 
 def photon_problems(s) -> list[str]:

@@ -29,6 +29,7 @@ PHOTON_VIEW_ITEMS = [
     ('GLOBAL', "Global Map", "Debug: the global photon map's radiance estimate seen directly"),
     ('CAUSTIC', "Caustic Map", "Debug: the caustic map's radiance estimate alone"),
     ('POSITIONS', "Photon Positions", "Debug: where photons landed (white), caustic photons in orange"),
+    ('INDIRECT', "Indirect", "Debug: final gathering alone (diffuse indirect light, no direct light or caustics)"),
 ]
 
 ICACHE_WEIGHT_ITEMS = [
@@ -44,6 +45,7 @@ ICACHE_GATHER_ITEMS = [
 ICACHE_VIEW_ITEMS = [
     ('FULL', "Full", "The rendered image"),
     ('RECORDS', "Records", "Debug: record positions as white dots over the dimmed indirect light"),
+    ('INDIRECT', "Indirect", "Debug: the cached diffuse indirect light alone (no direct light or caustics)"),
 ]
 
 

@@ -41,7 +41,7 @@ from .cache import RecordOctree, Records, neighbour_clamp, spread_subset
 from .hemisphere import cell_directions, gradient_to_world, record_terms
 
 GATHER_MODES = ("photon", "path")
-ICACHE_VIEWS = ("full", "records")
+ICACHE_VIEWS = ("full", "records", "indirect")
 # The support a R_i of a record, in pixel footprints at the record (Krivanek and Gautron's
 # screen-space clamp; Mitsuba 0.6 uses 3 and 20 on R_i with a weight whose support is R_i)...
 MIN_PX, MAX_PX = 3.0, 20.0
@@ -107,10 +107,9 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
             # interior against -1.5 % for the full estimate, and records need few lookups.
             yield [Stage("photons", self.n_global_items + self.n_caustic_items, publish=True)]
         n = self.layout.n_pixels
-        if s.icache_view == "full" or s.icache_view == "records":
-            probe = self.pixel_stage(0, n)
-            yield [Stage("probe", probe.items, publish=True, start=0, stop=n)]
-            yield from self._place()
+        probe = self.pixel_stage(0, n)
+        yield [Stage("probe", probe.items, publish=True, start=0, stop=n)]
+        yield from self._place()
         start, block = 0, 1
         while start < s.samples:
             stop = min(s.samples, start + block)
@@ -276,6 +275,9 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         albedo = at(bsdf.reflectance)
         if s.icache_view == "records":
             _accumulate(L, rows, self._record_dots(at(p), footprint) + 0.5 * bx * albedo * E / np.pi)
+            return
+        if s.icache_view == "indirect":  # debug and studies: the cached term alone
+            _accumulate(L, rows, bx * albedo * E * (1.0 / np.pi))
             return
         if self.caustic_map is not None and len(self.caustic_map):
             Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), lambda r, wi: bsdf.eval(wi, c[r])[0], s.photon_k,

@@ -278,21 +278,23 @@ class PhotonIntegrator(Integrator):
                                              accept=self.visible(at(p), at(ng_f), self.global_map))
             _accumulate(L, rows, bx * Lg)
             return
-        if len(self.caustic_map):
+        indirect = view == "indirect" or self.scene.settings.icache_view == "indirect"
+        if len(self.caustic_map) and not indirect:
             Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_caustic, kernel=s.photon_kernel, min_count=MIN_COUNT,
                                               accept=self.visible(at(p), at(ng_f), self.caustic_map))
             _accumulate(L, rows, bx * Lc)
         if view == "caustic":
             return
-        self._direct_light(L, sampler.get(1 + _GROUPS * depth + _LIGHT, rows, 3), rows, x, bx, at, p, ng_f, ns, prim,
-                           bsdf, G)
+        if not indirect:
+            self._direct_light(L, sampler.get(1 + _GROUPS * depth + _LIGHT, rows, 3), rows, x, bx, at, p, ng_f, ns,
+                               prim, bsdf, G)
         if G == 0:
             return
         # Final gathering: G rays per point, stratified over the pixel's camera samples.
         rep = np.repeat(np.arange(len(x)), G)
         gsampler = rng.Sampler(s.seed, pixel[rows][rep], sample[rows][rep] * G + np.tile(np.arange(G), len(x)), s.pattern,
                                domain=rng.GATHER)
-        Lg = self._gather(gsampler, x[rep], p, ng_f, prim, bsdf, G)
+        Lg = self._gather(gsampler, x[rep], p, ng_f, prim, bsdf, G, emission=not indirect)
         _accumulate(L, rows[rep], take(bx, rep) * Lg / G)
 
     def visible(self, p, n, photons):
@@ -327,7 +329,7 @@ class PhotonIntegrator(Integrator):
             lit = test[~blocked]
             _accumulate(L, rows[lit], take(contrib, lit))
 
-    def _gather(self, sampler, pts, p, ng_f, prim, bsdf, G, emission_only=False):
+    def _gather(self, sampler, pts, p, ng_f, prim, bsdf, G, emission_only=False, emission=True):
         """Radiance (K,3) x BSDF weight of one gather ray from each diffuse point pts (K,);
         emission_only: only the emission the ray finds (the BSDF strategy of direct light)."""
         scene, s, accel, lights = self.scene, self.scene.settings, self.ctx.accel, self.ctx.lights
@@ -338,7 +340,7 @@ class PhotonIntegrator(Integrator):
         o64 = take(p, pts[g])
         o32 = offset_origin(o64, towards(take(ng_f, pts[g]), d))
         return self._trace_gather(sampler, len(pts), g, take(bs.weight, g), d, o64, o32, prim[pts[g]],
-                                  (G * bs.pdf[g], bs.delta[g]), emission_only=emission_only)
+                                  (G * bs.pdf[g], bs.delta[g]) if emission else None, emission_only=emission_only)
 
     def _trace_gather(self, sampler, K, g, beta, d, o64, o32, skip, mis=None, t_first=None, emission_only=False):
         """Radiance (K,3) x beta found by gather rays g (rows of the K outputs) leaving o64
