@@ -78,7 +78,7 @@ class BallOctree:
         lo = np.floor((centre - half[:, None] - self.origin) / edge[:, None]).astype(np.int64) + 1
         hi = np.floor((centre + half[:, None] - self.origin) / edge[:, None]).astype(np.int64) + 1
         cells = lo[:, None, :] + _CORNERS[None]                      # (R, 8, 3)
-        inside = np.all(cells <= lo[:, None, :], axis=2)
+        inside = np.all(cells <= hi[:, None, :], axis=2)
         ball = np.broadcast_to(np.arange(len(centre))[:, None], inside.shape)[inside]
         cells = cells[inside]
         keys = _pack(level[ball], cells[:, 0], cells[:, 1], cells[:, 2])
