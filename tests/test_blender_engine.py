@@ -490,7 +490,7 @@ def test_properties_defaults_and_limits():
         assert (props["max_depth"].hard_min, props["max_depth"].hard_max) == (1, 1024)
         assert props["time_limit"].hard_min == 0.0
         assert props["batch_size"].hard_min == 1024
-        assert [i.identifier for i in props["integrator"].enum_items] == ['PATH', 'PHOTON', 'PPM']  # the registry's order
+        assert [i.identifier for i in props["integrator"].enum_items] == ['PATH', 'PHOTON', 'PPM', 'ICACHE']  # the registry's order
         e.samples = 0
         assert e.samples == 1  # clamped
     finally:

@@ -316,7 +316,8 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
     def _footprint(self, dist, cos_view):
         """World size of a pixel at path length dist, seen at cos_view."""
         s = 1.0 if self.scene.camera.ortho else dist
-        return s * self.pixel_angle / np.maximum(np.abs(cos_view), MIN_COS)
+        # Never 0 (a point at the camera, a degenerate window): it sets spacings and radii.
+        return np.maximum(s * self.pixel_angle / np.maximum(np.abs(cos_view), MIN_COS), 1e-9 * self.radius + 1e-12)
 
     def _miss(self, rows, pc, nc, footprint, prim, sample, pixel, idx):
         """Points to cover with records: rows of the batch's live paths idx; their key (the
