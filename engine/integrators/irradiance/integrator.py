@@ -86,7 +86,6 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         self.queue_len = 0
         self.rounds = 0
         self.first_id = 0
-        self.placements = 0
         self.interpolated = self.fallback = 0
         cam = scene.camera
         left, right = cam.window[0], cam.window[1]
@@ -120,7 +119,6 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
 
     def _place(self):
         """Records rounds until every candidate point is covered (or MAX_ROUNDS)."""
-        self.placements += 1
         while self.queue_len:
             yield [Stage("records", -(-self.queue_len // self._records_per_item()), publish=True)]
 
