@@ -2,12 +2,18 @@
 
     python render.py scene.blend --output out.png [options]      (bpy module)
     blender -b scene.blend -P render.py -- --output out.exr [options]
+    python render.py scene.blend --frames 1-250 --output frames/shot_####.exr
 
 Options (each defaults to the scene's own setting):
     --output PATH        .png: 8-bit RGBA through the scene's colour management (view
                          transform, look, compositor) - what Blender would save;
                          .exr: linear float32 RGBA, straight from the film.
                          Default: <blend name>.png in the current directory.
+                         '#' characters are the frame number, zero-padded to their count
+                         (the last run of them in the file name, as Blender's output path);
+                         with --frames and no '#', four are put before the extension.
+    --frames SPEC        frames to render, one file each: 5, 1-250, 1,3,10-12, or all (the
+                         scene's frame range and step). Default: the scene's current frame.
     --samples N          samples per pixel (>= 1)
     --time-limit S       stop after S seconds (0 = no limit)
     --noise-target X     stop once the estimated relative noise falls to X (0 = off)
@@ -19,7 +25,8 @@ Options (each defaults to the scene's own setting):
     --max-depth N        longest path (1..1024)
     --reference REF.exr  print relMSE (eps 1e-2) against this linear image (R, G, B
                          channels, the render's size) as passes complete and at the end
-    --no-progress        no progress bar on stderr
+    --no-progress        no progress on stderr (a bar on a terminal; without one, e.g. in a
+                         farm's log, one line every few seconds)
 Photon mapping (integrators photon and ppm; radii in metres, 0 = scene-relative default):
     --photons N          photon paths for the global map (ppm: per pass)
     --caustic-photons N  photon paths for the caustic map
@@ -42,7 +49,8 @@ Irradiance cache (integrator icache; also reads the photon options):
 The .blend is only read: settings are changed on the loaded copy in memory and nothing
 is saved. The image is written to a hidden temporary file beside the output, checked, and
 renamed into place: a failed write (full disk, permission) exits 1 and leaves a previous
-file at that path untouched. Exit codes: 0 done, 1 render failed, 2 bad input (file, option, scene),
+file at that path untouched. Exit codes: 0 done, 1 render failed (also: the Ember engine could not be loaded or
+registered - render.py never renders with another engine), 2 bad input (file, option, scene),
 130 interrupted (Ctrl-C), 143 terminated (SIGTERM): one line, the render stops within about
 a second (a second signal stops at once) and no output file is written.
 
@@ -61,6 +69,7 @@ import shutil
 import signal
 import sys
 import math
+import re
 import tempfile
 import time
 
@@ -193,7 +202,9 @@ def build_parser(blend_required: bool) -> argparse.ArgumentParser:
     for option, prop, kind, text in PHOTON_OPTIONS:
         p.add_argument(option, dest=prop, type=kind, help=text)
     p.add_argument("--reference", help="linear EXR to print relMSE against while rendering")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--frames", help="frames to render: 5, 1-250, 1,3,10-12 or all (one file each)")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress (a bar on a terminal, else a log line every few seconds)")
     return p
 
 
@@ -234,14 +245,20 @@ def _check_output(path: pathlib.Path) -> str:
 
 
 class _Follower:
-    """A final.listeners entry: progress bar, Ctrl-C stop, the film and errors."""
+    """A final.listeners entry: progress (a bar on a terminal, log lines without one),
+    Ctrl-C stop, the film, the scene's digest and errors."""
 
-    def __init__(self, show_progress: bool, reference=None):
+    LOG_EVERY = 5.0  # seconds between progress lines in a log (no terminal)
+
+    def __init__(self, show_progress: bool, reference=None, log: bool = False, frame=None):
         self.show_progress = show_progress
         self.reference = reference  # _Reference or None
+        self.log, self.frame = log, frame
+        self.last_log = time.perf_counter()
         self.bar = None
         self.bar_layer = None
         self.layers = {}  # layer -> (stats, image, border)
+        self.digests = {}  # layer -> engine.scene.scene_digest of what was rendered
         self.errors = []  # (message, user_error)
 
     # final.RenderListener interface -------------------------------------------------
@@ -253,8 +270,15 @@ class _Follower:
             sys.stderr.write(f"\r{layer}: export: {text[:60]:<60}")
             sys.stderr.flush()
 
+    def on_scene(self, layer, scene):
+        from ember.engine.scene import scene_digest
+        self.digests[layer] = scene_digest(scene)
+
     def on_progress(self, layer, progress):
         error = self.reference.update(progress, self.bar is None) if self.reference else None
+        if self.log and time.perf_counter() - self.last_log >= self.LOG_EVERY:
+            self.last_log = time.perf_counter()
+            print(log_line(self.frame, layer, progress), file=sys.stderr, flush=True)
         if not self.show_progress:
             return
         if self.bar is None or self.bar_layer != layer:
@@ -428,7 +452,6 @@ class _Reference:
 
 def _apply_settings(scene, args) -> None:
     """Command-line overrides onto the in-memory scene (never saved)."""
-    scene.render.engine = 'EMBER'
     ember = scene.ember
     if args.samples is not None:
         ember.samples = args.samples
@@ -465,6 +488,32 @@ def _apply_settings(scene, args) -> None:
          scene.render.resolution_percentage) = blender_resolution(*args.resolution)
 
 
+def log_line(frame, layer: str, progress) -> str:
+    """One progress line for a log: frame, samples, elapsed, estimated remaining, rays/s."""
+    where = f"frame {frame} | " if frame is not None else ""
+    stage = getattr(progress, "stage", "pixels")
+    remaining = ""
+    if 0 < progress.fraction < 1:
+        remaining = f" | ~{progress.elapsed * (1 - progress.fraction) / progress.fraction:.0f} s left"
+    return (f"Ember: {where}{layer} | {stage if stage != 'pixels' else 'sample'} "
+            f"{progress.samples_done}/{progress.samples_target} | {progress.elapsed:.1f} s{remaining} | "
+            f"{_fmt_rate(progress.rays_per_second)}")
+
+
+def exr_metadata(stats, digest: str, border, frame: int, layer: str) -> dict:
+    """What an Ember EXR records about its render (render.py merge reads it back)."""
+    s = stats.settings
+    offset = getattr(s, "sample_offset", 0)
+    return {
+        "ember/engine": "Ember", "ember/version": _version(), "ember/integrator": s.integrator,
+        "ember/samples": int(stats.samples), "ember/seed": int(s.seed), "ember/pattern": s.pattern,
+        "ember/sampleOffset": int(offset), "ember/sampleRange": f"[{offset}, {offset + stats.samples})",
+        "ember/renderSeconds": float(stats.elapsed), "ember/stoppedBy": stats.stopped_by or "done",
+        "ember/border": list(border), "ember/frame": int(frame), "ember/viewLayer": layer,
+        "ember/sceneDigest": digest,
+    }
+
+
 def blender_resolution(width: int, height: int) -> tuple[int, int, int]:
     """(resolution_x, resolution_y, resolution_percentage) giving a width x height frame.
     Blender clamps resolution_x/y to 4..65536 (a 1x1 request became 4x4) but applies the
@@ -495,6 +544,11 @@ def _clean_blender_error(text: str) -> str:
     return text[len("Error: "):] if text.startswith("Error: ") else text
 
 
+class EngineMissing(Exception):
+    """The Ember engine could not be loaded or registered: one line, exit code 1. render.py
+    never lets Blender fall back to another engine (a farm would get EEVEE frames)."""
+
+
 def _load_ember():
     if str(HERE) not in sys.path:
         sys.path.insert(0, str(HERE))
@@ -502,7 +556,82 @@ def _load_ember():
     return load_ember()
 
 
+def _register_ember():
+    """Load and register the add-on; EngineMissing if either fails."""
+    try:
+        ember = _load_ember()
+        ember.register()
+        from ember.engine.blender import registration
+        registration.check_runtime()
+    except Exception as e:  # any failure: missing wheel, bad install, registration error
+        detail = f"{type(e).__name__}: {e}".strip().splitlines()[0][:200]
+        raise EngineMissing(f"the Ember engine is not available: the add-on failed to load ({detail})")
+    return ember
+
+
+def _require_ember(scene) -> None:
+    """Select EMBER on the scene and check that Blender really has it."""
+    try:
+        scene.render.engine = 'EMBER'
+    except (TypeError, ValueError, AttributeError):
+        pass
+    if scene.render.engine != 'EMBER':
+        raise EngineMissing("the Ember engine is not available: the render engine 'EMBER' is not registered "
+                            f"(the scene would render with {scene.render.engine})")
+
+
+def parse_frames(spec: str, scene_range: tuple[int, int, int]) -> list[int]:
+    """'5', '1-250', '1,3,10-12' or 'all' (scene_range = (start, end, step)) -> frames in the
+    order given, repeats dropped."""
+    text = spec.strip().lower()
+    if text == "all":
+        start, end, step = scene_range
+        frames = list(range(start, end + 1, max(step, 1)))
+    else:
+        frames = []
+        for part in text.split(","):
+            m = re.fullmatch(r"\s*(-?\d+)\s*(?:-\s*(-?\d+)\s*)?", part)
+            if m is None:
+                raise UsageError(f"--frames: expected frames such as 5, 1-250, 1,3,10-12 or all, got {spec!r}")
+            a = int(m.group(1))
+            b = int(m.group(2)) if m.group(2) is not None else a
+            if b < a:
+                raise UsageError(f"--frames: range {part.strip()!r} ends before it starts")
+            frames.extend(range(a, b + 1))
+    if not frames:
+        raise UsageError(f"--frames {spec!r}: no frames (scene range {scene_range[0]}-{scene_range[1]})")
+    if len(frames) > 1_000_000:
+        raise UsageError(f"--frames {spec!r}: more than a million frames")
+    return list(dict.fromkeys(frames))
+
+
+def frame_path(path: pathlib.Path, frame: int, numbered: bool) -> pathlib.Path:
+    """The output path of `frame`: the last run of '#' in the file name becomes the frame
+    number zero-padded to its length (Blender's rule); without '#', `numbered` puts four
+    digits before the extension (out.png -> out0001.png)."""
+    name = path.name
+    runs = list(re.finditer(r"#+", name))
+    if runs:
+        m = runs[-1]
+        name = name[:m.start()] + f"{frame:0{len(m.group())}d}" + name[m.end():]
+    elif numbered:
+        name = f"{path.stem}{frame:04d}{path.suffix}"
+    return path.with_name(name)
+
+
+def _version() -> str:
+    """The add-on's version (blender_manifest.toml)."""
+    try:
+        import tomllib
+        with open(HERE / "blender_manifest.toml", "rb") as fh:
+            return str(tomllib.load(fh).get("version", "unknown"))
+    except (OSError, ValueError):
+        return "unknown"
+
+
 def run(argv: list[str]) -> int:
+    if argv and argv[0] == "merge":
+        return run_merge(argv[1:])
     t_start = time.perf_counter()
     args = build_parser(blend_required=not IN_BLENDER).parse_args(argv)
 
@@ -540,12 +669,11 @@ def run(argv: list[str]) -> int:
         blend = pathlib.Path(bpy.data.filepath)
 
     STOP.check()
-    ember = _load_ember()
-    ember.register()
+    _register_ember()
     STOP.check()
-    from ember.engine.blender import final
 
     scene = bpy.context.scene
+    _require_ember(scene)
     _apply_settings(scene, args)
     if scene.camera is None:
         raise UsageError(f"the scene '{scene.name}' has no active camera: add one or set Scene > Camera")
@@ -555,82 +683,134 @@ def run(argv: list[str]) -> int:
         scene.render.resolution_y * scene.render.resolution_percentage // 100
     if reference is not None:
         reference.check_size(w, h)
+    frames = None
+    if args.frames is not None:
+        frames = parse_frames(args.frames, (scene.frame_start, scene.frame_end, scene.frame_step))
+        scene.render.use_persistent_data = True  # workers and Embree scenes stay from frame to frame
+    job = _Job(blend, kind, reference, show_progress=not args.no_progress, t_start=t_start,
+               numbered=frames is not None)
+    if frames is None:
+        return job.render_frame(scene, scene.frame_current, frame_path(output, scene.frame_current, False))
+    for i, frame in enumerate(frames):
+        STOP.check()
+        scene.frame_set(frame)
+        _require_ember(scene)  # a frame-change handler could have switched it
+        code = job.render_frame(scene, frame, frame_path(output, frame, True), f" ({i + 1}/{len(frames)})")
+        if code != EXIT_OK:
+            return code
+    if len(frames) > 1:
+        print(f"Ember: {len(frames)} frames in {time.perf_counter() - t_start:.2f} s", flush=True)
+    return EXIT_OK
 
-    follower = _Follower(show_progress=not args.no_progress and sys.stderr.isatty(), reference=reference)
-    final.listeners.append(follower)
-    blender_error = None
-    STOP.output = output
-    STOP.check()
-    try:
-        bpy.ops.render.render(write_still=False)
-    except RuntimeError as e:  # ERROR reports (ours and Blender's own) raise here
-        blender_error = _clean_blender_error(e)
-    finally:
-        follower._close_bar()
-        final.listeners.remove(follower)
-    STOP.check()
-    STOP.soft = False  # from here a signal interrupts the write at once
-    if follower.errors:
-        message, user_error = follower.errors[0]
-        print(f"render.py: error: {message}", file=sys.stderr)
-        return EXIT_USAGE if user_error else EXIT_FAILED
-    if blender_error is not None:  # Blender refused before our engine ran (e.g. too small)
-        print(f"render.py: error: {blender_error}", file=sys.stderr)
-        return EXIT_USAGE
-    if not follower.layers:
-        print("render.py: error: nothing was rendered (no enabled view layer?)", file=sys.stderr)
-        return EXIT_FAILED
 
-    # The view layer shown in the Render Result: the window's active one if rendered.
-    active = bpy.context.view_layer.name if bpy.context.view_layer else None
-    layer = active if active in follower.layers else next(iter(follower.layers))
-    stats, image, border = follower.layers[layer]
-    from ember.engine import imageio
-    imageio.remove_stale_temporaries(output)  # left by a render killed while writing
-    try:
-        if kind == ".exr":
-            if image is None:
-                raise imageio.OutputError(f"could not write {output}: nothing was rendered")
-            if scene.render.use_border and scene.render.use_crop_to_border:
-                x0, y0, x1, y1 = border
-                image = image[y0:y1, x0:x1]
-            imageio.save_rgba_exr(output, image)
-        else:
-            result = bpy.data.images["Render Result"]
+class _Job:
+    """Renders frames of the loaded scene one at a time and writes each file."""
 
-            def save_png(tmp):
-                result.save_render(filepath=str(pathlib.Path(tmp).resolve()), scene=scene)
+    def __init__(self, blend, kind, reference, show_progress, t_start, numbered):
+        self.blend, self.kind, self.reference = blend, kind, reference
+        self.show_progress, self.t_start, self.numbered = show_progress, t_start, numbered
 
-            size = None
-            if image is not None:  # the PNG is the film's size, or the border's when cropped
-                size = (image.shape[1], image.shape[0])
+    def render_frame(self, scene, frame: int, output: pathlib.Path, count: str = "") -> int:
+        import bpy
+        from ember.engine.blender import final
+        t_frame = time.perf_counter()
+        tty = sys.stderr.isatty()
+        follower = _Follower(show_progress=self.show_progress and tty, reference=self.reference,
+                             log=self.show_progress and not tty, frame=frame if self.numbered else None)
+        final.listeners.append(follower)
+        blender_error = None
+        STOP.output = output
+        STOP.check()
+        try:
+            bpy.ops.render.render(write_still=False)
+        except RuntimeError as e:  # ERROR reports (ours and Blender's own) raise here
+            blender_error = _clean_blender_error(e)
+        finally:
+            follower._close_bar()
+            final.listeners.remove(follower)
+        STOP.check()
+        STOP.soft = False  # from here a signal interrupts the write at once
+        try:
+            code = self._write(scene, frame, output, follower, blender_error, t_frame, count)
+        finally:
+            STOP.soft = True
+        return code
+
+    def _write(self, scene, frame, output, follower, blender_error, t_frame, count) -> int:
+        import bpy
+        if follower.errors:
+            message, user_error = follower.errors[0]
+            print(f"render.py: error: {message}", file=sys.stderr)
+            return EXIT_USAGE if user_error else EXIT_FAILED
+        if blender_error is not None:  # Blender refused before our engine ran (e.g. too small)
+            print(f"render.py: error: {blender_error}", file=sys.stderr)
+            return EXIT_USAGE
+        if not follower.layers:
+            print("render.py: error: nothing was rendered by Ember (no enabled view layer?)", file=sys.stderr)
+            return EXIT_FAILED
+        w = scene.render.resolution_x * scene.render.resolution_percentage // 100
+        h = scene.render.resolution_y * scene.render.resolution_percentage // 100
+
+        # The view layer shown in the Render Result: the window's active one if rendered.
+        active = bpy.context.view_layer.name if bpy.context.view_layer else None
+        layer = active if active in follower.layers else next(iter(follower.layers))
+        stats, image, border = follower.layers[layer]
+        from ember.engine import imageio
+        imageio.remove_stale_temporaries(output)  # left by a render killed while writing
+        try:
+            if self.kind == ".exr":
+                if image is None:
+                    raise imageio.OutputError(f"could not write {output}: nothing was rendered")
+                header = exr_metadata(stats, follower.digests.get(layer, ""), border, frame, layer)
                 if scene.render.use_border and scene.render.use_crop_to_border:
                     x0, y0, x1, y1 = border
-                    size = (x1 - x0, y1 - y0)
-            imageio.write_atomically(output, save_png, lambda tmp: imageio.check_png(tmp, size))
-    except imageio.OutputError as e:
-        print(f"render.py: error: {e}", file=sys.stderr)
-        return EXIT_FAILED
-    if len(follower.layers) > 1 and kind == ".exr":
-        print(f"note: {len(follower.layers)} view layers rendered; {output} holds '{layer}'",
-              file=sys.stderr)
+                    image = image[y0:y1, x0:x1]
+                    header["ember/crop"] = [x0, y0, x1, y1]
+                imageio.save_rgba_exr(output, image, header)
+            else:
+                result = bpy.data.images["Render Result"]
 
-    samples = min(s.samples for s, _, _ in follower.layers.values())
-    rays = sum(s.rays for s, _, _ in follower.layers.values())
-    render_s = sum(s.elapsed for s, _, _ in follower.layers.values())
-    extra = ""
-    if stats.noise is not None and math.isfinite(stats.noise):
-        extra += f", noise {stats.noise:.4f}"
-    if stats.stopped_by in ("time limit", "noise target"):
-        extra += f", stopped at the {stats.stopped_by}"
-    if reference is not None:
-        full = follower.layers[layer][1]  # the full-frame image, before any crop
-        extra += f", relMSE {reference.error(full):.4e} (eps {reference.metrics.EPS:g})"
-    nonfinite = sum(int(getattr(s, "nonfinite", 0)) for s, _, _ in follower.layers.values())
-    print(f"Ember: {blend.name} -> {output}: {w}x{h}, {samples} samples, "
-          f"render {render_s:.2f} s, total {time.perf_counter() - t_start:.2f} s, "
-          f"{_fmt_rate(rays / max(render_s, 1e-9))}, {nonfinite} non-finite samples{extra}", flush=True)
-    return EXIT_OK
+                def save_png(tmp):
+                    result.save_render(filepath=str(pathlib.Path(tmp).resolve()), scene=scene)
+
+                size = None
+                if image is not None:  # the PNG is the film's size, or the border's when cropped
+                    size = (image.shape[1], image.shape[0])
+                    if scene.render.use_border and scene.render.use_crop_to_border:
+                        x0, y0, x1, y1 = border
+                        size = (x1 - x0, y1 - y0)
+                imageio.write_atomically(output, save_png, lambda tmp: imageio.check_png(tmp, size))
+        except imageio.OutputError as e:
+            print(f"render.py: error: {e}", file=sys.stderr)
+            return EXIT_FAILED
+        if len(follower.layers) > 1 and self.kind == ".exr":
+            print(f"note: {len(follower.layers)} view layers rendered; {output} holds '{layer}'",
+                  file=sys.stderr)
+
+        samples = min(s.samples for s, _, _ in follower.layers.values())
+        rays = sum(s.rays for s, _, _ in follower.layers.values())
+        render_s = sum(s.elapsed for s, _, _ in follower.layers.values())
+        extra = ""
+        if stats.noise is not None and math.isfinite(stats.noise):
+            extra += f", noise {stats.noise:.4f}"
+        if stats.stopped_by in ("time limit", "noise target"):
+            extra += f", stopped at the {stats.stopped_by}"
+        if self.reference is not None:
+            full = follower.layers[layer][1]  # the full-frame image, before any crop
+            extra += f", relMSE {self.reference.error(full):.4e} (eps {self.reference.metrics.EPS:g})"
+        nonfinite = sum(int(getattr(s, "nonfinite", 0)) for s, _, _ in follower.layers.values())
+        where = f" frame {frame}{count}" if self.numbered else ""
+        total = time.perf_counter() - (t_frame if self.numbered else self.t_start)
+        print(f"Ember: {self.blend.name}{where} -> {output}: {w}x{h}, {samples} samples, "
+              f"render {render_s:.2f} s, total {total:.2f} s, "
+              f"{_fmt_rate(rays / max(render_s, 1e-9))}, {stats.processes} worker processes, "
+              f"{nonfinite} non-finite samples{extra}", flush=True)
+        return EXIT_OK
+
+
+
+def run_merge(argv: list[str]) -> int:
+    raise UsageError("merge is not implemented yet")
 
 
 def main() -> int:
@@ -642,6 +822,9 @@ def main() -> int:
     except UsageError as e:
         print(f"render.py: error: {e}", file=sys.stderr)
         return EXIT_USAGE
+    except EngineMissing as e:
+        print(f"render.py: error: {e}", file=sys.stderr)
+        return EXIT_FAILED
     except KeyboardInterrupt:
         if not STOP.requested:  # raised by Python itself (no handler yet)
             print("Interrupted.", file=sys.stderr)

@@ -493,6 +493,41 @@ def to_plain(obj):
     return obj
 
 
+# Settings that say how many samples to take, where and how fast - not what the image
+# converges to: partial renders differing only in these merge into one (render.py merge).
+SAMPLING_ONLY = ("samples", "sample_offset", "time_limit", "noise_target", "threads", "batch_size", "border",
+                 "seed")
+
+
+def scene_digest(scene: "Scene") -> str:
+    """SHA-1 over the scene's arrays and settings but SAMPLING_ONLY: equal digests mean the
+    same image up to which samples of which pixels were taken (the seed is compared apart)."""
+    import hashlib
+
+    h = hashlib.sha1()
+
+    def feed(key, value):
+        h.update(key.encode())
+        if isinstance(value, dict):
+            for k in sorted(value):
+                feed(f"{key}.{k}", value[k])
+        elif isinstance(value, (list, tuple)):
+            for i, v in enumerate(value):
+                feed(f"{key}[{i}]", v)
+        elif isinstance(value, np.ndarray) and value.dtype == object:
+            feed(key, value.tolist())
+        elif isinstance(value, np.ndarray):
+            h.update(f"{value.dtype}{value.shape}".encode())
+            h.update(np.ascontiguousarray(value).tobytes())
+        else:
+            h.update(repr(value).encode())
+
+    plain = to_plain(scene)
+    plain["settings"] = {k: v for k, v in plain["settings"].items() if k not in SAMPLING_ONLY}
+    feed("scene", plain)
+    return h.hexdigest()
+
+
 def scene_from_plain(data: dict) -> "Scene":
     parts = {"mesh": Mesh, "materials": Materials, "lights": Lights, "world": World,
              "camera": Camera, "settings": Settings}

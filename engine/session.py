@@ -66,6 +66,7 @@ class RenderStats:
     processes: int = 0  # worker processes used (0: traced in the render process)
     stage_seconds: dict = field(default_factory=dict)  # stage name -> wall seconds (all rounds)
     counters: dict = field(default_factory=dict)  # the integrator's figures (photons stored, ...)
+    settings: object = None  # the scene's Settings as rendered (integrator, seed, sample range)
 
     def summary(self) -> str:
         state = {"cancel": "cancelled", "": "done"}.get(self.stopped_by, f"stopped at the {self.stopped_by}")
@@ -167,7 +168,8 @@ class RenderSession:
                            rays_per_second=run.rays / max(elapsed, 1e-9), embree_seconds=run.embree_seconds,
                            build_seconds=self.build_seconds, cancelled=run.cancelled, noise=noise,
                            nonfinite=self.film.nonfinite, stopped_by=stopped_by, processes=self.processes,
-                           stage_seconds=run.stage_seconds, counters=self.integrator.counters())
+                           stage_seconds=run.stage_seconds, counters=self.integrator.counters(),
+                           settings=self.scene.settings)
 
 
 class _Run:

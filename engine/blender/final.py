@@ -42,6 +42,9 @@ class RenderListener:
     def on_export(self, layer: str, text: str) -> None:
         pass
 
+    def on_scene(self, layer: str, scene) -> None:
+        """The exported engine.scene.Scene, before the render starts."""
+
     def on_progress(self, layer: str, progress) -> None:
         pass
 
@@ -194,6 +197,7 @@ def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
     settings = scene.settings
     if export_break():
         return None, None
+    _notify("on_scene", layer, scene)
 
     engine.update_stats("Ember", "Building")
     session = RenderSession(scene)

@@ -31,3 +31,9 @@ def unregister():
     material.unregister()
     properties.unregister()
     _registered = False
+
+
+def check_runtime() -> None:
+    """Import what every render needs but loads lazily (Embree's wheel), so that a broken
+    install fails before a render starts rather than in its first frame."""
+    from embreex import mesh_construction, rtcore, rtcore_scene  # noqa: F401

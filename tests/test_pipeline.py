@@ -1,0 +1,185 @@
+"""Pipelines (issue 15): render.py as a farm runs it - frames, a missing engine, threads,
+logs, metadata, split frames and their merge - on a tiny animated scene in a subprocess."""
+from __future__ import annotations
+
+import importlib.util
+import os
+import pathlib
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.blender
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+RENDER = ROOT / "render.py"
+
+# A plane under a point light whose power is keyframed 100 W (frame 1) -> 900 W (frame 3).
+BUILD = textwrap.dedent('''
+    import sys, bpy, mathutils
+    out = sys.argv[-1]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    sc.render.resolution_x, sc.render.resolution_y = 24, 16
+    sc.render.resolution_percentage = 100
+    me = bpy.data.meshes.new("plane")
+    me.from_pydata([(-4, -4, 0), (4, -4, 0), (4, 4, 0), (-4, 4, 0)], [], [(0, 1, 2, 3)])
+    me.update()
+    sc.collection.objects.link(bpy.data.objects.new("plane", me))
+    box = bpy.data.meshes.new("box")
+    box.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0), (-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1)],
+                    [], [(4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)])
+    box.update()
+    sc.collection.objects.link(bpy.data.objects.new("box", box))
+    ld = bpy.data.lights.new("lamp", 'POINT')
+    lo = bpy.data.objects.new("lamp", ld)
+    lo.location = (1, -1, 3)
+    sc.collection.objects.link(lo)
+    for frame, energy in ((1, 100.0), (3, 900.0)):
+        ld.energy = energy
+        ld.keyframe_insert("energy", frame=frame)
+    cam = bpy.data.objects.new("cam", bpy.data.cameras.new("cam"))
+    cam.location = (0, -5, 4)
+    sc.collection.objects.link(cam)
+    cam.rotation_euler = (mathutils.Vector((0, 0, 0)) - cam.location).to_track_quat('-Z', 'Y').to_euler()
+    sc.camera = cam
+    sc.frame_start, sc.frame_end, sc.frame_current = 1, 3, 2
+    bpy.ops.wm.save_as_mainfile(filepath=out + "/anim.blend")
+''')
+
+
+def _env(tmp, **extra):
+    env = dict(os.environ)
+    env["BLENDER_USER_RESOURCES"] = str(tmp / "blender_user")
+    env["TMPDIR"] = str(tmp)
+    env.pop("PYTHONPATH", None)
+    env.update(extra)
+    return env
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory):
+    pytest.importorskip("bpy")
+    d = tmp_path_factory.mktemp("pipeline")
+    proc = subprocess.run([sys.executable, "-c", BUILD, str(d)], env=_env(d), capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return d
+
+
+def run(scenes, *args, env=None, timeout=180):
+    proc = subprocess.run([sys.executable, str(RENDER), *map(str, args)], cwd=scenes, env=env or _env(scenes),
+                          capture_output=True, text=True, timeout=timeout)
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+def read(path):
+    from ember.engine import imageio
+    ch, header = imageio.read_exr(path)
+    return np.stack([ch[c] for c in "RGBA"], axis=-1), header
+
+
+def _render_py():
+    spec = importlib.util.spec_from_file_location("render_py_under_test", RENDER)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+# --- 5. fail loudly ----------------------------------------------------------------------------
+
+def test_missing_engine_fails_loudly(scenes, tmp_path):
+    """An add-on that cannot load (its Embree wheel missing) exits 1 with one clear line and
+    writes nothing - never a render by another engine."""
+    fake = tmp_path / "fake" / "embreex"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text('raise ImportError("simulated: no embreex wheel")\n')
+    code, out, err = run(scenes, "anim.blend", "-o", "missing.png", env=_env(scenes, PYTHONPATH=str(fake.parent)))
+    assert code == 1, (out, err)
+    assert "Traceback" not in err
+    line = [l for l in err.splitlines() if l.startswith("render.py: error:")]
+    assert len(line) == 1 and "Ember engine is not available" in line[0] and "embreex" in line[0], err
+    assert not (scenes / "missing.png").exists()
+
+
+def test_unregistered_engine_is_refused():
+    """A scene whose render.engine cannot become EMBER (not registered) is refused."""
+    rp = _render_py()
+
+    class Render:
+        def __init__(self):
+            self._engine = "BLENDER_EEVEE_NEXT"
+
+        @property
+        def engine(self):
+            return self._engine
+
+        @engine.setter
+        def engine(self, value):
+            raise TypeError(f"enum {value!r} not found")
+
+    class Scene:
+        render = Render()
+
+    with pytest.raises(rp.EngineMissing, match="'EMBER' is not registered.*BLENDER_EEVEE_NEXT"):
+        rp._require_ember(Scene())
+
+
+# --- 1. frames ---------------------------------------------------------------------------------
+
+def test_frame_specs_and_paths():
+    rp = _render_py()
+    assert rp.parse_frames("1-3", (1, 250, 1)) == [1, 2, 3]
+    assert rp.parse_frames("1,3,10-12,3", (1, 250, 1)) == [1, 3, 10, 11, 12]
+    assert rp.parse_frames("all", (5, 11, 3)) == [5, 8, 11]
+    assert rp.parse_frames("-2--1", (1, 2, 1)) == [-2, -1]
+    for bad in ("1-", "a", "3-1", "1,,2"):
+        with pytest.raises(rp.UsageError, match="--frames"):
+            rp.parse_frames(bad, (1, 250, 1))
+    P = pathlib.Path
+    assert rp.frame_path(P("out/shot_####.exr"), 7, True) == P("out/shot_0007.exr")
+    assert rp.frame_path(P("a##/b_#_##.png"), 123, True) == P("a##/b_#_123.png")  # the last run, in the name
+    assert rp.frame_path(P("out.png"), 7, True) == P("out0007.png")
+    assert rp.frame_path(P("out.png"), 7, False) == P("out.png")
+
+
+def test_frames_write_one_file_each(scenes):
+    code, out, err = run(scenes, "anim.blend", "--frames", "1-3", "--samples", "4", "-o", "anim_##.exr")
+    assert code == 0, err
+    lines = [l for l in out.splitlines() if l.startswith("Ember: anim.blend frame")]
+    assert [l.split(" -> ")[0][-5:] for l in lines] == ["(1/3)", "(2/3)", "(3/3)"]
+    means = []
+    for frame in (1, 2, 3):
+        img, header = read(scenes / f"anim_{frame:02d}.exr")
+        assert header["ember/frame"] == frame and header["ember/samples"] == 4
+        means.append(float(img[..., :3].mean()))
+    # The light's power is keyframed 100 -> 500 -> 900 W: the image scales with it.
+    assert means[1] / means[0] == pytest.approx(5.0, rel=1e-4)
+    assert means[2] / means[0] == pytest.approx(9.0, rel=1e-4)
+
+
+def test_animation_through_blender(scenes):
+    """`blender -b anim.blend -a`: Blender's own animation render calls Ember per frame."""
+    script = textwrap.dedent(f'''
+        import sys, bpy
+        sys.path.insert(0, {str(ROOT)!r})
+        from _bootstrap import load_ember
+        load_ember().register()
+        bpy.ops.wm.open_mainfile(filepath={str(scenes / "anim.blend")!r})
+        sc = bpy.context.scene
+        sc.render.engine = 'EMBER'
+        sc.ember.samples = 2
+        sc.render.image_settings.file_format = 'OPEN_EXR'
+        sc.render.filepath = {str(scenes / "blender_a_")!r}
+        sc.frame_end = 2
+        bpy.ops.render.render(animation=True)
+    ''')
+    proc = subprocess.run([sys.executable, "-c", script], cwd=scenes, env=_env(scenes), capture_output=True,
+                          text=True, timeout=180)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.count("Ember done: 2 samples") == 2, proc.stdout
+    files = sorted(p.name for p in scenes.glob("blender_a_*.exr"))
+    assert files == ["blender_a_0001.exr", "blender_a_0002.exr"]
