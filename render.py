@@ -23,6 +23,10 @@ Options (each defaults to the scene's own setting):
     --pattern NAME       sobol (Owen-scrambled Sobol, the default) or random (independent)
     --resolution WxH     frame size in pixels (resolution percentage becomes 100 %)
     --max-depth N        longest path (1..1024)
+    --threads N          CPU threads, one worker process each (1: all in this process). Default:
+                         Render Properties > Performance > Threads; Auto-detect uses every CPU
+                         the process may run on (its affinity: taskset, cgroups); `blender -t N`
+                         is honoured as Blender's own override
     --reference REF.exr  print relMSE (eps 1e-2) against this linear image (R, G, B
                          channels, the render's size) as passes complete and at the end
     --no-progress        no progress on stderr (a bar on a terminal; without one, e.g. in a
@@ -202,6 +206,9 @@ def build_parser(blend_required: bool) -> argparse.ArgumentParser:
     for option, prop, kind, text in PHOTON_OPTIONS:
         p.add_argument(option, dest=prop, type=kind, help=text)
     p.add_argument("--reference", help="linear EXR to print relMSE against while rendering")
+    p.add_argument("--threads", type=_int_at_least(1, 1024),
+                   help="CPU threads (worker processes); default: the scene's setting, Auto-detect = "
+                        "the CPUs this process may use (affinity)")
     p.add_argument("--frames", help="frames to render: 5, 1-250, 1,3,10-12 or all (one file each)")
     p.add_argument("--no-progress", action="store_true",
                    help="no progress (a bar on a terminal, else a log line every few seconds)")
@@ -483,6 +490,9 @@ def _apply_settings(scene, args) -> None:
             names = ", ".join(k.lower() for k in items)
             raise UsageError(f"unknown integrator {args.integrator!r} (choose one of: {names})")
         ember.integrator = wanted
+    if args.threads is not None:  # Blender's own setting, which `blender -t N` overrides the same way
+        scene.render.threads_mode = 'FIXED'
+        scene.render.threads = args.threads
     if args.resolution is not None:
         (scene.render.resolution_x, scene.render.resolution_y,
          scene.render.resolution_percentage) = blender_resolution(*args.resolution)

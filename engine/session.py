@@ -15,7 +15,6 @@ API is not thread-safe), at least every `UPDATE_INTERVAL` seconds.
 """
 from __future__ import annotations
 
-import os
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
@@ -100,7 +99,7 @@ class RenderSession:
         self.integrator = integrators.create(scene)  # the render-process side: stages, reduce
         self.layout = self.integrator.layout
         self.film = Film(s.width, s.height)
-        cores = s.threads or os.cpu_count() or 1
+        cores = s.threads or workers.available_cores()
         # Worker processes pay ~1 s to start; worth it only for renders of several items.
         self.processes = (cores if cores > 1 and self.integrator.work_items() >= 2 * cores and workers.can_spawn()
                           else 0)

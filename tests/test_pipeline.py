@@ -47,6 +47,10 @@ BUILD = textwrap.dedent('''
     cam.rotation_euler = (mathutils.Vector((0, 0, 0)) - cam.location).to_track_quat('-Z', 'Y').to_euler()
     sc.camera = cam
     sc.frame_start, sc.frame_end, sc.frame_current = 1, 3, 2
+    sys.path.insert(0, sys.argv[-2])
+    from _bootstrap import load_ember
+    load_ember().register()
+    sc.ember.batch_size = 1024  # several items per frame, so that worker processes would pay off
     bpy.ops.wm.save_as_mainfile(filepath=out + "/anim.blend")
 ''')
 
@@ -64,7 +68,7 @@ def _env(tmp, **extra):
 def scenes(tmp_path_factory):
     pytest.importorskip("bpy")
     d = tmp_path_factory.mktemp("pipeline")
-    proc = subprocess.run([sys.executable, "-c", BUILD, str(d)], env=_env(d), capture_output=True,
+    proc = subprocess.run([sys.executable, "-c", BUILD, str(ROOT), str(d)], env=_env(d), capture_output=True,
                           text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     return d
@@ -183,3 +187,39 @@ def test_animation_through_blender(scenes):
     assert proc.stdout.count("Ember done: 2 samples") == 2, proc.stdout
     files = sorted(p.name for p in scenes.glob("blender_a_*.exr"))
     assert files == ["blender_a_0001.exr", "blender_a_0002.exr"]
+
+
+# --- 3. threads --------------------------------------------------------------------------------
+
+def _processes(out):
+    line = [l for l in out.splitlines() if l.startswith("Ember: anim.blend")][-1]
+    return int(line.split(" worker processes")[0].rsplit(" ", 1)[1])
+
+
+def test_render_threads_setting():
+    from ember.engine.blender.export_settings import render_threads
+    from ember.engine.parallel.workers import available_cores
+
+    class R:
+        def __init__(self, mode, threads):
+            self.threads_mode, self.threads = mode, threads
+
+    assert render_threads(R("FIXED", 3)) == 3  # as asked, like Cycles
+    assert render_threads(R("AUTO", 1)) == 1  # `blender -t 1`
+    assert render_threads(R("AUTO", 4096)) == available_cores()  # Auto-detect: the affinity mask
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="needs Linux CPU affinity")
+def test_threads_and_affinity(scenes):
+    """--threads 1 and a process pinned to one CPU start no worker process; --threads 2 starts two."""
+    args = ("anim.blend", "--samples", "16", "-o", "threads.exr")
+    code, out, err = run(scenes, *args, "--threads", "1")
+    assert code == 0, err
+    assert _processes(out) == 0
+    code, out, err = run(scenes, *args, "--threads", "2")
+    assert code == 0, err
+    assert _processes(out) == 2
+    pinned = subprocess.run([sys.executable, str(RENDER), *args], cwd=scenes, env=_env(scenes), capture_output=True,
+                            text=True, timeout=180, preexec_fn=lambda: os.sched_setaffinity(0, {min(os.sched_getaffinity(0))}))
+    assert pinned.returncode == 0, pinned.stderr
+    assert _processes(pinned.stdout) == 0

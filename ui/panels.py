@@ -71,6 +71,12 @@ class EMBER_RENDER_PT_performance(EmberRenderPanel, bpy.types.Panel):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
+        rd = context.scene.render
+        col = layout.column(heading="Threads")  # Blender's own setting, as Cycles shows it
+        col.prop(rd, "threads_mode")
+        sub = col.column(align=True)
+        sub.enabled = rd.threads_mode == 'FIXED'
+        sub.prop(rd, "threads")
         layout.prop(context.scene.ember, "batch_size")
 
 

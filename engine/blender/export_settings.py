@@ -12,6 +12,7 @@ import dataclasses
 import numpy as np
 
 from ..errors import EmberError
+from ..parallel.workers import available_cores
 from ..rng import PATTERNS
 from ..integrators import NAMES as INTEGRATORS
 from ..scene import FILTERS, Settings
@@ -41,6 +42,18 @@ def border_pixels(fractions, width: int, height: int) -> tuple[int, int, int, in
     bx0, bx1 = int(fx0 * w), int(fx1 * w)
     by0, by1 = int(fy0 * h), int(fy1 * h)  # from the bottom
     return bx0, height - by1, bx1, height - by0
+
+
+def render_threads(render) -> int:
+    """Threads (worker processes) a render may use, as Cycles reads them: render.threads is
+    Blender's effective count - the Fixed value, else `blender -t N`, else every CPU of the
+    machine - and Auto-detect is further held to the process's CPU affinity."""
+    threads = getattr(render, "threads", None)
+    if threads is None:
+        return 0  # a stand-in scene without the property: all cores
+    if getattr(render, "threads_mode", "AUTO") == "FIXED":
+        return max(int(threads), 1)
+    return max(min(int(threads), available_cores()), 1)
 
 
 def _integrator_name(value) -> str:
@@ -78,7 +91,7 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
     value, None = keep) win. Raises EmberError on unknown override keys or bad values."""
     render = scene.render
     width, height = render_size(render)
-    kw = dict(width=width, height=height)
+    kw = dict(width=width, height=height, threads=render_threads(render))
 
     ember = getattr(scene, "ember", None)
     for name in _EMBER_FIELDS:

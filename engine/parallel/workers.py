@@ -90,6 +90,14 @@ def serve(fin, fout) -> None:
             attachment.close()
 
 
+def available_cores() -> int:
+    """CPUs this process may run on: its affinity mask (taskset, a farm's cgroup pinning)."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except (AttributeError, OSError):  # not Linux
+        return os.cpu_count() or 1
+
+
 def can_spawn() -> bool:
     """A plain Python interpreter is needed; Blender's own binary cannot run the worker."""
     exe = pathlib.Path(sys.executable or "")
