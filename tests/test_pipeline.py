@@ -223,3 +223,31 @@ def test_threads_and_affinity(scenes):
                             text=True, timeout=180, preexec_fn=lambda: os.sched_setaffinity(0, {min(os.sched_getaffinity(0))}))
     assert pinned.returncode == 0, pinned.stderr
     assert _processes(pinned.stdout) == 0
+
+
+# --- 4. logs and metadata ----------------------------------------------------------------------
+
+def test_log_lines_without_a_terminal(capsys):
+    """No TTY: one line per LOG_EVERY seconds with frame, samples, elapsed, remaining, rays/s."""
+    rp = _render_py()
+    from types import SimpleNamespace
+    follower = rp._Follower(show_progress=False, log=True, frame=12)
+    progress = SimpleNamespace(samples_done=8, samples_target=32, fraction=0.25, elapsed=3.0,
+                               rays_per_second=2.5e6, stage="pixels")
+    follower.on_progress("ViewLayer", progress)  # too soon after the start: nothing
+    assert capsys.readouterr().err == ""
+    follower.last_log -= follower.LOG_EVERY
+    follower.on_progress("ViewLayer", progress)
+    follower.on_progress("ViewLayer", progress)  # again too soon
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == ["Ember: frame 12 | ViewLayer | sample 8/32 | 3.0 s | ~9 s left | 2.50 M rays/s"]
+
+
+def test_exr_metadata(scenes):
+    code, out, err = run(scenes, "anim.blend", "--samples", "3", "--seed", "7", "-o", "meta.exr")
+    assert code == 0, err
+    assert err.strip() == "" or "Ember:" not in err  # a short render logs no progress line
+    _, h = read(scenes / "meta.exr")
+    assert (h["ember/engine"], h["ember/integrator"], h["ember/samples"], h["ember/seed"]) == ("Ember", "path", 3, 7)
+    assert h["ember/sampleRange"] == "[0, 3)" and h["ember/frame"] == 2 and h["ember/version"] != "unknown"
+    assert 0 < h["ember/renderSeconds"] < 60 and len(h["ember/sceneDigest"]) == 40
