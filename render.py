@@ -3,6 +3,7 @@
     python render.py scene.blend --output out.png [options]      (bpy module)
     blender -b scene.blend -P render.py -- --output out.exr [options]
     python render.py scene.blend --frames 1-250 --output frames/shot_####.exr
+    python render.py merge part*.exr --output frame.exr           (no Blender needed)
 
 Options (each defaults to the scene's own setting):
     --output PATH        .png: 8-bit RGBA through the scene's colour management (view
@@ -23,6 +24,10 @@ Options (each defaults to the scene's own setting):
     --pattern NAME       sobol (Owen-scrambled Sobol, the default) or random (independent)
     --resolution WxH     frame size in pixels (resolution percentage becomes 100 %)
     --max-depth N        longest path (1..1024)
+    --sample-offset K    take samples [K, K + N) of the sample sequence (N = --samples): parts of
+                         one frame rendered on several machines, then `render.py merge`
+    --border X0,Y0,X1,Y1 render only this region (Blender's render border: fractions of the
+                         frame, y from the bottom), uncropped: tiles that `merge` puts together
     --threads N          CPU threads, one worker process each (1: all in this process). Default:
                          Render Properties > Performance > Threads; Auto-detect uses every CPU
                          the process may run on (its affinity: taskset, cgroups); `blender -t N`
@@ -49,6 +54,14 @@ Irradiance cache (integrator icache; also reads the photon options):
     --icache-weight NAME ward or tabellion
     --icache-gather NAME photon (the global map) or path (path-traced gather rays)
     --icache-view NAME   full, or records (record positions as dots), indirect (the cache alone)
+
+Merge: `render.py merge PART.exr ... --output OUT.exr` combines EXRs that render.py wrote of
+one frame - disjoint sample ranges (--sample-offset), tiles (--border) or both - weighting each
+pixel by the samples each part took there (read from the parts' metadata). The merge of any
+split equals the render of all the samples at once to float32 rounding. Parts of different
+scenes or settings (the metadata's scene digest), of different seeds, with overlapping sample
+ranges, cropped, or stopped early (time limit, noise target, Ctrl-C: unequal sample counts) are
+refused with one line (exit 2).
 
 The .blend is only read: settings are changed on the loaded copy in memory and nothing
 is saved. The image is written to a hidden temporary file beside the output, checked, and
@@ -188,6 +201,19 @@ def _resolution(text):
     return w, h
 
 
+def _border(text):
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 4 or not all(0 <= v <= 1 for v in values):
+        raise argparse.ArgumentTypeError(f"expected four fractions X0,Y0,X1,Y1 in 0..1, got {text!r}")
+    x0, y0, x1, y1 = values
+    if not (x0 < x1 and y0 < y1):
+        raise argparse.ArgumentTypeError(f"the border's X0 < X1 and Y0 < Y1 must hold, got {text!r}")
+    return values
+
+
 def build_parser(blend_required: bool) -> argparse.ArgumentParser:
     p = _Parser(prog="render.py", description="Render a .blend with Ember, headless.",
                 epilog="Options left out keep the scene's own settings.")
@@ -206,6 +232,9 @@ def build_parser(blend_required: bool) -> argparse.ArgumentParser:
     for option, prop, kind, text in PHOTON_OPTIONS:
         p.add_argument(option, dest=prop, type=kind, help=text)
     p.add_argument("--reference", help="linear EXR to print relMSE against while rendering")
+    p.add_argument("--sample-offset", type=_non_negative_int,
+                   help="first sample index: render samples [K, K + samples) (a part for render.py merge)")
+    p.add_argument("--border", type=_border, help="render border X0,Y0,X1,Y1 (fractions, y up), uncropped")
     p.add_argument("--threads", type=_int_at_least(1, 1024),
                    help="CPU threads (worker processes); default: the scene's setting, Auto-detect = "
                         "the CPUs this process may use (affinity)")
@@ -490,6 +519,12 @@ def _apply_settings(scene, args) -> None:
             names = ", ".join(k.lower() for k in items)
             raise UsageError(f"unknown integrator {args.integrator!r} (choose one of: {names})")
         ember.integrator = wanted
+    if args.sample_offset is not None:
+        ember.sample_offset = args.sample_offset
+    if args.border is not None:
+        r = scene.render
+        r.use_border, r.use_crop_to_border = True, False
+        r.border_min_x, r.border_min_y, r.border_max_x, r.border_max_y = args.border
     if args.threads is not None:  # Blender's own setting, which `blender -t N` overrides the same way
         scene.render.threads_mode = 'FIXED'
         scene.render.threads = args.threads
@@ -820,7 +855,42 @@ class _Job:
 
 
 def run_merge(argv: list[str]) -> int:
-    raise UsageError("merge is not implemented yet")
+    p = _Parser(prog="render.py merge", description="Merge partial Ember EXRs of one frame.")
+    p.add_argument("parts", nargs="+", help="EXRs written by render.py (sample ranges, tiles)")
+    p.add_argument("-o", "--output", required=True, help="the merged .exr")
+    args = p.parse_args(argv)
+    output = pathlib.Path(args.output)
+    if _check_output(output) != ".exr":
+        raise UsageError(f"merge writes an .exr, got {str(output)!r}")
+    _load_ember()
+    from ember.engine import imageio
+    from ember.engine.merge import MergeError, Part, merge
+    parts = []
+    for name in args.parts:
+        path = pathlib.Path(name)
+        if not path.is_file():
+            raise UsageError(f"part not found: {path}")
+        try:
+            channels, header = imageio.read_exr(path)
+        except (OSError, RuntimeError, ValueError) as e:
+            raise UsageError(f"cannot read {path}: {e}")
+        try:
+            parts.append(Part.from_exr(path.name, channels, header))
+        except MergeError as e:
+            raise UsageError(str(e))
+    try:
+        image, header = merge(parts)
+    except MergeError as e:
+        raise UsageError(str(e))
+    imageio.remove_stale_temporaries(output)
+    try:
+        imageio.save_rgba_exr(output, image, header)
+    except imageio.OutputError as e:
+        print(f"render.py: error: {e}", file=sys.stderr)
+        return EXIT_FAILED
+    print(f"Ember: merged {len(parts)} parts -> {output}: {image.shape[1]}x{image.shape[0]}, "
+          f"samples {header['ember/sampleRange']}", flush=True)
+    return EXIT_OK
 
 
 def main() -> int:

@@ -430,6 +430,9 @@ class Settings:
     icache_weight: str = "ward"  # interpolation weight: "ward" (the seed) or "tabellion" (Tabellion-Lamorlette)
     icache_gather: str = "photon"  # radiance at gather hits: "photon" (global map, the seed's) or "path"
     icache_view: str = "full"  # "full", or the debug view "records" (records as dots)
+    # First sample index: a render takes samples [sample_offset, sample_offset + samples) of
+    # the one sequence, so renders of disjoint ranges merge into the render of their union.
+    sample_offset: int = 0
 
     def __post_init__(self):
         if self.border is None:

@@ -121,7 +121,7 @@ class RenderSession:
             seg_end = min(len(k), cut + n_pixels - k[cut] % n_pixels)
             self.film.add(self.layout.pixel[k[cut:seg_end] % n_pixels], L[cut:seg_end])
             if (k[seg_end - 1] + 1) % n_pixels == 0:  # the segment completed a pass
-                self.film.end_pass(int(k[seg_end - 1] + 1) // n_pixels)
+                self.film.end_pass(int(k[seg_end - 1] + 1) // n_pixels - self.scene.settings.sample_offset)
             cut = seg_end
 
     def run(self, on_update=None, should_stop=None) -> RenderStats:

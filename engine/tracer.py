@@ -29,6 +29,7 @@ class BatchLayout:
         self.pixel = self.py * s.width + self.px
         self.n_pixels = len(self.px)
         self.total_paths = s.samples * self.n_pixels
+        self.first_path = s.sample_offset * self.n_pixels  # samples [offset, offset + samples)
         self.n_batches = -(-self.total_paths // s.batch_size)
 
     def paths(self, stage: Stage, item: int) -> np.ndarray:

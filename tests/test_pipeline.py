@@ -251,3 +251,81 @@ def test_exr_metadata(scenes):
     assert (h["ember/engine"], h["ember/integrator"], h["ember/samples"], h["ember/seed"]) == ("Ember", "path", 3, 7)
     assert h["ember/sampleRange"] == "[0, 3)" and h["ember/frame"] == 2 and h["ember/version"] != "unknown"
     assert 0 < h["ember/renderSeconds"] < 60 and len(h["ember/sceneDigest"]) == 40
+
+
+# --- 6. split frames that merge exactly --------------------------------------------------------
+
+F32_ULP = 2.0 ** -23
+
+
+def _merge(scenes, *parts, out="merged.exr"):
+    return run(scenes, "merge", *parts, "-o", out)
+
+
+@pytest.mark.parametrize("integrator", ["path", "photon"])
+def test_sample_ranges_merge_into_the_full_render(scenes, integrator):
+    """[0, 32) + [32, 64) merged = the 64-sample render to float32 rounding (2 ulp: the parts'
+    means and the merge are each rounded once)."""
+    common = ("anim.blend", "--seed", "3", "--integrator", integrator, "--photons", "2000", "--caustic-photons", "0",
+              "--gather-rays", "2")
+    tag = integrator
+    for args, out in (((), f"{tag}_full.exr"), (("--samples", "32"), f"{tag}_a.exr"),
+                      (("--samples", "32", "--sample-offset", "32"), f"{tag}_b.exr")):
+        samples = () if args else ("--samples", "64")
+        code, _, err = run(scenes, *common, *samples, *args, "-o", out)
+        assert code == 0, err
+    code, out, err = _merge(scenes, f"{tag}_a.exr", f"{tag}_b.exr", out=f"{tag}_merged.exr")
+    assert code == 0, err
+    full, _ = read(scenes / f"{tag}_full.exr")
+    merged, header = read(scenes / f"{tag}_merged.exr")
+    part, _ = read(scenes / f"{tag}_a.exr")
+    assert header["ember/sampleRange"] == "[0, 64)" and header["ember/samples"] == 64
+    np.testing.assert_allclose(merged, full, rtol=2 * F32_ULP, atol=0)
+    assert np.abs(part - full).max() > 1e3 * F32_ULP * np.abs(full).max()  # the parts differ from the whole
+
+
+def test_tiles_and_ranges_merge_into_the_full_render(scenes):
+    """Four parts: the left half in two sample ranges, the right half (a render border) whole."""
+    common = ("anim.blend", "--seed", "5")
+    jobs = [(("--samples", "64"), "t_full.exr"),
+            (("--samples", "16", "--border", "0,0,0.5,1"), "t_l0.exr"),
+            (("--samples", "48", "--sample-offset", "16", "--border", "0,0,0.5,1"), "t_l1.exr"),
+            (("--samples", "64", "--border", "0.5,0,1,1"), "t_r.exr")]
+    for args, out in jobs:
+        code, _, err = run(scenes, *common, *args, "-o", out)
+        assert code == 0, err
+    code, _, err = _merge(scenes, "t_l0.exr", "t_r.exr", "t_l1.exr", out="t_merged.exr")
+    assert code == 0, err
+    full, _ = read(scenes / "t_full.exr")
+    merged, header = read(scenes / "t_merged.exr")
+    assert header["ember/border"] == "[0, 0, 24, 16]" and header["ember/samples"] == 64
+    np.testing.assert_allclose(merged, full, rtol=2 * F32_ULP, atol=0)
+
+
+def test_merge_refuses_parts_that_do_not_belong_together(scenes):
+    common = ("anim.blend", "--samples", "4")
+    for args, out in ((("--seed", "1"), "r_a.exr"), (("--seed", "1", "--sample-offset", "4"), "r_b.exr"),
+                      (("--seed", "2", "--sample-offset", "4"), "r_seed.exr"),
+                      (("--seed", "1", "--sample-offset", "4", "--frames", "3"), "r_frame#.exr"),
+                      (("--seed", "1", "--sample-offset", "2"), "r_overlap.exr")):
+        code, _, err = run(scenes, *common, *args, "-o", out)
+        assert code == 0, err
+    for parts, words in ((("r_a.exr", "r_seed.exr"), ["seed 2", "seed 1"]),
+                         (("r_a.exr", "r_frame3.exr"), ["different scenes"]),
+                         (("r_a.exr", "r_overlap.exr"), ["same samples"]),
+                         (("r_a.exr", "anim.blend"), ["cannot read"])):
+        code, _, err = _merge(scenes, *parts, out="refused.exr")
+        assert code == 2, err
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("render.py: error:"), err
+        assert all(w in lines[0] for w in words), (words, lines[0])
+        assert not (scenes / "refused.exr").exists()
+    code, _, err = _merge(scenes, "r_a.exr", "r_b.exr", out="ok.exr")
+    assert code == 0, err
+
+
+def test_ppm_refuses_a_sample_offset(scenes):
+    code, _, err = run(scenes, "anim.blend", "--integrator", "ppm", "--samples", "2", "--sample-offset", "2",
+                       "-o", "ppm.exr")
+    assert code == 2
+    assert "sample offset does not apply to the 'ppm' integrator" in err.lower() and "Traceback" not in err

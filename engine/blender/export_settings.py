@@ -16,12 +16,12 @@ from ..parallel.workers import available_cores
 from ..rng import PATTERNS
 from ..integrators import NAMES as INTEGRATORS
 from ..scene import FILTERS, Settings
-from ..validation import icache_problems, photon_problems
+from ..validation import icache_problems, photon_problems, sample_offset_problems
 
 _DEFAULTS = Settings()
 
 # scene.ember field -> Settings field (same name); read with getattr so plain bpy works.
-_EMBER_FIELDS = ("samples", "max_depth", "seed", "time_limit", "noise_target", "batch_size",
+_EMBER_FIELDS = ("samples", "sample_offset", "max_depth", "seed", "time_limit", "noise_target", "batch_size",
                  "photons", "caustic_photons", "photon_k", "global_radius", "caustic_radius", "gather_rays",
                  "radiance_photons", "ppm_radius", "ppm_alpha", "icache_rays", "icache_a", "icache_gradients")
 _INTEGRATOR_ENUM = {name.upper(): name for name in INTEGRATORS}  # UI enum id -> registry name
@@ -147,4 +147,7 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
     problems = icache_problems(settings)
     if problems:
         raise EmberError("Invalid irradiance-cache settings: " + "; ".join(problems) + ".")
+    problems = sample_offset_problems(settings)
+    if problems:
+        raise EmberError(problems[0][0].upper() + problems[0][1:] + ".")
     return settings
