@@ -845,10 +845,12 @@ class _Job:
             extra += f", relMSE {self.reference.error(full):.4e} (eps {self.reference.metrics.EPS:g})"
         nonfinite = sum(int(getattr(s, "nonfinite", 0)) for s, _, _ in follower.layers.values())
         where = f" frame {frame}{count}" if self.numbered else ""
+        b = stats.builds
         total = time.perf_counter() - (t_frame if self.numbered else self.t_start)
         print(f"Ember: {self.blend.name}{where} -> {output}: {w}x{h}, {samples} samples, "
               f"render {render_s:.2f} s, total {total:.2f} s, "
-              f"{_fmt_rate(rays / max(render_s, 1e-9))}, {stats.processes} worker processes, "
+              f"{_fmt_rate(rays / max(render_s, 1e-9))}, {stats.processes} worker processes "
+              f"({b.get('workers', 0)} started, {b.get('embree', 0)} Embree and {b.get('lights', 0)} light builds), "
               f"{nonfinite} non-finite samples{extra}", flush=True)
         return EXIT_OK
 

@@ -433,6 +433,9 @@ class Settings:
     # First sample index: a render takes samples [sample_offset, sample_offset + samples) of
     # the one sequence, so renders of disjoint ranges merge into the render of their union.
     sample_offset: int = 0
+    # Keep worker processes, Embree scenes and light tables for the next render (Blender's
+    # Persistent Data; animations): only the scene parts that changed are built again.
+    persistent: bool = False
 
     def __post_init__(self):
         if self.border is None:
@@ -499,12 +502,11 @@ def to_plain(obj):
 # Settings that say how many samples to take, where and how fast - not what the image
 # converges to: partial renders differing only in these merge into one (render.py merge).
 SAMPLING_ONLY = ("samples", "sample_offset", "time_limit", "noise_target", "threads", "batch_size", "border",
-                 "seed")
+                 "seed", "persistent")
 
 
-def scene_digest(scene: "Scene") -> str:
-    """SHA-1 over the scene's arrays and settings but SAMPLING_ONLY: equal digests mean the
-    same image up to which samples of which pixels were taken (the seed is compared apart)."""
+def digest(value) -> str:
+    """SHA-1 of a plain value (to_plain: nested dicts, tuples, arrays, scalars)."""
     import hashlib
 
     h = hashlib.sha1()
@@ -525,10 +527,22 @@ def scene_digest(scene: "Scene") -> str:
         else:
             h.update(repr(value).encode())
 
+    feed("", value)
+    return h.hexdigest()
+
+
+def part_digests(scene: "Scene") -> dict[str, str]:
+    """Part name (mesh, materials, lights, world, camera, settings) -> digest: what changed
+    between two renders (persistent data rebuilds only that)."""
+    return {f.name: digest(to_plain(getattr(scene, f.name))) for f in fields(scene)}
+
+
+def scene_digest(scene: "Scene") -> str:
+    """Digest of the scene's arrays and settings but SAMPLING_ONLY: equal digests mean the
+    same image up to which samples of which pixels were taken (the seed is compared apart)."""
     plain = to_plain(scene)
     plain["settings"] = {k: v for k, v in plain["settings"].items() if k not in SAMPLING_ONLY}
-    feed("scene", plain)
-    return h.hexdigest()
+    return digest(plain)
 
 
 def scene_from_plain(data: dict) -> "Scene":

@@ -329,3 +329,63 @@ def test_ppm_refuses_a_sample_offset(scenes):
                        "-o", "ppm.exr")
     assert code == 2
     assert "sample offset does not apply to the 'ppm' integrator" in err.lower() and "Traceback" not in err
+
+
+# --- 2. persistent data ------------------------------------------------------------------------
+
+def _builds(out):
+    """[(processes, started, Embree builds, light builds)] per frame line."""
+    import re
+    rows = []
+    for line in out.splitlines():
+        m = re.search(r"(\d+) worker processes \((\d+) started, (\d+) Embree and (\d+) light builds\)", line)
+        if m and line.startswith("Ember: anim.blend"):
+            rows.append(tuple(int(g) for g in m.groups()))
+    return rows
+
+
+@pytest.mark.parametrize("threads", [2, 1])
+def test_persistent_data_across_frames(scenes, threads):
+    """Frames 1-4 in one run: the workers and the Embree scene of frame 1 serve the rest; the
+    light tables are rebuilt only while the light's power changes (keyframes 1 -> 3); every
+    image equals a fresh render of its frame."""
+    code, out, err = run(scenes, "anim.blend", "--frames", "1-4", "--samples", "16", "--threads", threads,
+                         "-o", f"persist{threads}_#.exr")
+    assert code == 0, err
+    workers = threads if threads > 1 else 0
+    assert _builds(out) == [(workers, workers, 1, 1), (workers, 0, 0, 1), (workers, 0, 0, 1), (workers, 0, 0, 0)]
+    code, out, err = run(scenes, "anim.blend", "--samples", "16", "--threads", threads, "-o", f"fresh{threads}.exr")
+    assert code == 0, err
+    assert _builds(out) == [(workers, workers, 1, 1)]
+    fresh, _ = read(scenes / f"fresh{threads}.exr")
+    kept, _ = read(scenes / f"persist{threads}_2.exr")
+    np.testing.assert_array_equal(kept, fresh)
+    np.testing.assert_array_equal(read(scenes / f"persist{threads}_3.exr")[0], read(scenes / f"persist{threads}_4.exr")[0])
+
+
+def test_persistent_tracer_rebuilds_only_what_changed():
+    """In-process persistent data: camera moves keep Embree and the light tables, a changed
+    light keeps Embree, a changed mesh rebuilds both; without persistence nothing is kept."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from core_scenes import perspective, sphere_with_point_light
+    from ember.engine import tracer as tracer_mod
+    from ember.engine.session import RenderSession
+
+    base = sphere_with_point_light(persistent=True, threads=1, samples=2, width=8, height=8)
+
+    def builds(scene):
+        stats = RenderSession(scene).run()
+        return stats.builds["embree"], stats.builds["lights"], stats.builds["workers"]
+
+    tracer_mod.forget()
+    try:
+        assert builds(base) == (1, 1, 0)
+        assert builds(base.replace(camera=perspective((0, 0.2, 0), (0, 1, 0), 50))) == (0, 0, 0)
+        brighter = base.lights.__class__(**{**base.lights.__dict__, "Le": base.lights.Le * 2})
+        assert builds(base.replace(lights=brighter)) == (0, 1, 0)
+        moved = base.mesh.__class__(**{**base.mesh.__dict__, "vertices": base.mesh.vertices * 0.9})
+        assert builds(base.replace(mesh=moved)) == (1, 1, 0)
+        plain = base.replace(settings=base.settings.replace(persistent=False))
+        assert builds(plain) == (1, 1, 0) and builds(plain) == (1, 1, 0)
+    finally:
+        tracer_mod.forget()

@@ -91,7 +91,8 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
     value, None = keep) win. Raises EmberError on unknown override keys or bad values."""
     render = scene.render
     width, height = render_size(render)
-    kw = dict(width=width, height=height, threads=render_threads(render))
+    kw = dict(width=width, height=height, threads=render_threads(render),
+              persistent=bool(getattr(render, "use_persistent_data", False)))
 
     ember = getattr(scene, "ember", None)
     for name in _EMBER_FIELDS:
