@@ -238,6 +238,11 @@ def build_parser(blend_required: bool) -> argparse.ArgumentParser:
     p.add_argument("--threads", type=_int_at_least(1, 1024),
                    help="CPU threads (worker processes); default: the scene's setting, Auto-detect = "
                         "the CPUs this process may use (affinity)")
+    p.add_argument("--scheduler", help="render on Dask: tcp://HOST:PORT of a scheduler, or local:N workers")
+    p.add_argument("--chunk-samples", type=_positive_int,
+                   help="with --scheduler: at most this many samples per task (frames split, then merged)")
+    p.add_argument("--send-blend", action="store_true",
+                   help="with --scheduler: send the .blend's bytes to the workers (else they read its path)")
     p.add_argument("--frames", help="frames to render: 5, 1-250, 1,3,10-12 or all (one file each)")
     p.add_argument("--no-progress", action="store_true",
                    help="no progress (a bar on a terminal, else a log line every few seconds)")
@@ -732,6 +737,8 @@ def run(argv: list[str]) -> int:
     if args.frames is not None:
         frames = parse_frames(args.frames, (scene.frame_start, scene.frame_end, scene.frame_step))
         scene.render.use_persistent_data = True  # workers and Embree scenes stay from frame to frame
+    if args.scheduler is not None:
+        return _run_farm(args, argv, blend, output, kind, scene, frames, t_start)
     job = _Job(blend, kind, reference, show_progress=not args.no_progress, t_start=t_start,
                numbered=frames is not None)
     if frames is None:
@@ -746,6 +753,117 @@ def run(argv: list[str]) -> int:
     if len(frames) > 1:
         print(f"Ember: {len(frames)} frames in {time.perf_counter() - t_start:.2f} s", flush=True)
     return EXIT_OK
+
+
+# Options the farm sets per task (or that only the caller uses); the rest go to every task.
+_FARM_OWN = {"-o", "--output", "--frames", "--samples", "--sample-offset", "--scheduler", "--chunk-samples",
+             "--send-blend", "--reference", "--no-progress"}
+
+
+def task_options(argv: list[str]) -> list[str]:
+    """The render options of `argv` that every farm task repeats: all but the .blend, the
+    output, the frames, the sample range and the farm's own."""
+    flags = {o for a in build_parser(False)._actions if a.nargs == 0 for o in a.option_strings}
+    out, i = [], 0
+    while i < len(argv):
+        token = argv[i]
+        name = token.split("=", 1)[0]
+        takes_value = token.startswith("-") and name not in flags and "=" not in token
+        if token.startswith("-") and name not in _FARM_OWN:
+            out += argv[i:i + 1 + takes_value]
+        i += 1 + takes_value if token.startswith("-") else 1  # a bare word is the .blend
+    return out
+
+
+def _run_farm(args, argv, blend, output, kind, scene, frames, t_start) -> int:
+    """--scheduler: frames and sample ranges as Dask tasks (engine/parallel/farm.py); each
+    frame is merged and written as soon as its parts are in."""
+    from ember.engine import imageio
+    from ember.engine.merge import MergeError, Part, merge
+    from ember.engine.parallel import farm
+
+    if kind != ".exr":
+        raise UsageError("--scheduler writes .exr frames (partial renders merge in linear float)")
+    if args.reference is not None:
+        raise UsageError("--reference does not apply with --scheduler")
+    numbered = frames is not None
+    frames = frames if numbered else [scene.frame_current]
+    tasks = farm.plan(frames, scene.ember.samples, scene.ember.sample_offset, args.chunk_samples or 0)
+    options = task_options(argv)
+    if args.scheduler.startswith("local:"):
+        try:
+            n = int(args.scheduler.split(":", 1)[1])
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise UsageError(f"--scheduler local:N needs a number of workers >= 1, got {args.scheduler!r}")
+        if args.threads is None:  # the local workers share this machine's CPUs
+            from ember.engine.parallel.workers import available_cores
+            options += ["--threads", str(max(available_cores() // n, 1))]
+    elif not args.scheduler.startswith(("tcp://", "tls://")):
+        raise UsageError(f"--scheduler expects tcp://HOST:PORT or local:N, got {args.scheduler!r}")
+    blend_bytes = blend.read_bytes() if args.send_blend else None
+    where = str(blend.resolve())
+    print(f"Ember: {blend.name}: {len(tasks)} tasks ({len(frames)} frames) on {args.scheduler}", flush=True)
+    expected = {f: sum(t.frame == f for t in tasks) for f in frames}
+    parts = {f: [] for f in frames}
+    try:
+        client, cluster = farm.connect(args.scheduler)
+    except (OSError, TimeoutError) as e:
+        raise EngineMissing(f"cannot reach the Dask scheduler {args.scheduler}: {e}")
+    except farm.RenderTaskError as e:
+        raise EngineMissing(str(e))
+    t_farm = time.perf_counter()
+
+    def on_task(done, total, task, result):
+        print(f"Ember: task {done}/{total}: {task.describe()} done, {time.perf_counter() - t_farm:.1f} s",
+              flush=True)
+
+    try:
+        futures = farm.submit(client, tasks, str(HERE / "render.py"), None if args.send_blend else where,
+                              blend_bytes, options)
+        for task, result in farm.gather(futures, on_task):
+            STOP.check()
+            parts[task.frame].append(result["exr"])
+            if len(parts[task.frame]) == expected[task.frame]:
+                path = frame_path(output, task.frame, numbered)
+                _write_farm_frame(path, parts.pop(task.frame), imageio, Part, merge)
+                print(f"Ember: {blend.name} frame {task.frame} -> {path}: {expected[task.frame]} part(s)", flush=True)
+    except farm.RenderTaskError as e:
+        print(f"render.py: error: {e}", file=sys.stderr)
+        return EXIT_FAILED
+    except (MergeError, imageio.OutputError) as e:
+        print(f"render.py: error: {e}", file=sys.stderr)
+        return EXIT_FAILED
+    except Exception as e:  # Dask's own: KilledWorker (a task whose workers kept dying), lost scheduler
+        print(f"render.py: error: the farm failed ({type(e).__name__}: {str(e).splitlines()[0][:200] if str(e) else ''})",
+              file=sys.stderr)
+        return EXIT_FAILED
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    print(f"Ember: {len(frames)} frames in {time.perf_counter() - t_start:.2f} s on {args.scheduler}", flush=True)
+    return EXIT_OK
+
+
+def _write_farm_frame(path, datas, imageio, Part, merge) -> None:
+    """One part: its bytes as they are; several: merged (engine/merge.py)."""
+    if len(datas) == 1:
+        def write(tmp):
+            with open(tmp, "wb") as fh:
+                fh.write(datas[0])
+        imageio.write_atomically(path, write, imageio.check_exr)
+        return
+    with tempfile.TemporaryDirectory(prefix="ember-merge-") as tmp:
+        parts = []
+        for i, data in enumerate(datas):
+            part = pathlib.Path(tmp) / f"part{i}.exr"
+            part.write_bytes(data)
+            channels, header = imageio.read_exr(part)
+            parts.append(Part.from_exr(f"{path.name} part {i}", channels, header))
+    image, header = merge(parts)
+    imageio.save_rgba_exr(path, image, header)
 
 
 class _Job:
