@@ -9,6 +9,11 @@ mesh, lights and world stay) rendered through bpy.ops.render.render with two wor
 processes, few samples so that the fixed costs show; the same frames with Blender's
 Persistent Data off (every frame starts its workers and builds Embree: the behaviour before
 issue 15) and on. Reports the median wall time of frames 2..N and the builds they made.
+
+Dask overhead: the same frames with --dask-samples samples, by `render.py --frames` on this
+machine (two worker processes, persistent data) and by `render.py --scheduler local:2` (a
+LocalCluster of two single-threaded workers, one render.py per task), whole frames and
+frames split in two sample ranges; wall time of the whole command each.
 """
 from __future__ import annotations
 
@@ -16,6 +21,7 @@ import argparse
 import math
 import pathlib
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -92,6 +98,8 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=6)
     ap.add_argument("--triangles", type=int, default=200_000)
     ap.add_argument("--samples", type=int, default=4)
+    ap.add_argument("--dask-samples", type=int, default=64)
+    ap.add_argument("--no-dask", action="store_true")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         blend = pathlib.Path(tmp) / "frames.blend"
@@ -104,6 +112,22 @@ def main() -> None:
             print(f"persistent data {'on ' if persistent else 'off'}: frame 1 {rows[0][0]:.2f} s, frames 2..N "
                   f"median {statistics.median(later):.2f} s (of which session run {statistics.median(sampling):.2f} s), "
                   f"builds of frame 2: {rows[1][1]}")
+        if not args.no_dask:
+            dask_overhead(blend, args.frames, args.dask_samples)
+
+
+def dask_overhead(blend: pathlib.Path, frames: int, samples: int) -> None:
+    base = [sys.executable, str(ROOT / "render.py"), str(blend), "--frames", f"1-{frames}", "--samples",
+            str(samples), "--no-progress"]
+    runs = {"local, 2 worker processes": ["--threads", "2"],
+            "Dask local:2, whole frames": ["--scheduler", "local:2"],
+            f"Dask local:2, {samples // 2}-sample ranges": ["--scheduler", "local:2", "--chunk-samples", str(samples // 2)]}
+    for label, extra in runs.items():
+        out = blend.parent / f"{label.split(',')[0].split()[0].lower()}_{len(extra)}_#.exr"
+        t0 = time.perf_counter()
+        proc = subprocess.run(base + extra + ["-o", str(out)], capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        print(f"{label}: {frames} frames x {samples} samples in {time.perf_counter() - t0:.2f} s")
 
 
 if __name__ == "__main__":
