@@ -84,3 +84,25 @@ def test_a_killed_worker_changes_nothing(farm_dir, monkeypatch):
             parts.append(Part.from_exr(path.name, *read_exr(path)))
         image, _ = merge(parts)
         np.testing.assert_allclose(image, read(d / f"local_{frame}.exr")[0], rtol=2 * F32_ULP, atol=0)
+
+
+def test_task_plan_and_options():
+    from ember.engine.parallel import farm
+    from test_pipeline import _render_py
+
+    assert [(t.frame, t.offset, t.samples) for t in farm.plan([1, 2], 10, 4, 4)] == \
+        [(1, 4, 4), (1, 8, 4), (1, 12, 2), (2, 4, 4), (2, 8, 4), (2, 12, 2)]
+    assert [(t.frame, t.offset, t.samples) for t in farm.plan([7], 10)] == [(7, 0, 10)]
+    rp = _render_py()
+    argv = ["x.blend", "--frames", "1-3", "--seed", "4", "--no-progress", "--output=o_#.exr", "--send-blend",
+            "--scheduler", "local:2", "--radiance-photons", "off", "--chunk-samples", "8", "--samples", "16"]
+    assert rp.task_options(argv) == ["--seed", "4", "--radiance-photons", "off"]
+
+
+def test_a_failing_task_reports_its_one_line(tmp_path):
+    """What render.py says on the worker reaches the caller (RenderTaskError)."""
+    from ember.engine.parallel import farm
+
+    with pytest.raises(RuntimeError) as e:
+        farm.render_task({"frame": 1, "offset": 0, "samples": 1}, str(RENDER), str(tmp_path / "gone.blend"), None, [])
+    assert str(e.value).startswith(farm.TASK_ERROR) and "file not found" in str(e.value)
