@@ -45,9 +45,10 @@ def border_pixels(fractions, width: int, height: int) -> tuple[int, int, int, in
 
 
 def render_threads(render) -> int:
-    """Threads (worker processes) a render may use, as Cycles reads them: render.threads is
-    Blender's effective count - the Fixed value, else `blender -t N`, else every CPU of the
-    machine - and Auto-detect is further held to the process's CPU affinity."""
+    """Threads (worker processes) a render may use, as Cycles reads them. render.threads is
+    Blender's effective count (BKE_render_num_threads: `blender -t N`, else the Fixed value,
+    else every CPU of the machine) and `-t N` makes threads_mode read FIXED; Auto-detect is
+    further held to the process's CPU affinity, which Blender's count ignores."""
     threads = getattr(render, "threads", None)
     if threads is None:
         return 0  # a stand-in scene without the property: all cores
