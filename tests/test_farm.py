@@ -5,7 +5,6 @@ in the middle of the job. About 40 s on two busy cores (bpy starts once per task
 from __future__ import annotations
 
 import os
-import pathlib
 import signal
 import subprocess
 import sys

@@ -36,4 +36,7 @@ def unregister():
 def check_runtime() -> None:
     """Import what every render needs but loads lazily (Embree's wheel), so that a broken
     install fails before a render starts rather than in its first frame."""
-    from embreex import mesh_construction, rtcore, rtcore_scene  # noqa: F401
+    import importlib
+
+    for module in ("embreex.rtcore", "embreex.rtcore_scene", "embreex.mesh_construction"):
+        importlib.import_module(module)
