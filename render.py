@@ -2,12 +2,19 @@
 
     python render.py scene.blend --output out.png [options]      (bpy module)
     blender -b scene.blend -P render.py -- --output out.exr [options]
+    python render.py scene.blend --frames 1-250 --output frames/shot_####.exr
+    python render.py merge part*.exr --output frame.exr           (no Blender needed)
 
 Options (each defaults to the scene's own setting):
     --output PATH        .png: 8-bit RGBA through the scene's colour management (view
                          transform, look, compositor) - what Blender would save;
                          .exr: linear float32 RGBA, straight from the film.
                          Default: <blend name>.png in the current directory.
+                         '#' characters are the frame number, zero-padded to their count
+                         (the last run of them in the file name, as Blender's output path);
+                         with --frames and no '#', four are put before the extension.
+    --frames SPEC        frames to render, one file each: 5, 1-250, 1,3,10-12, or all (the
+                         scene's frame range and step). Default: the scene's current frame.
     --samples N          samples per pixel (>= 1)
     --time-limit S       stop after S seconds (0 = no limit)
     --noise-target X     stop once the estimated relative noise falls to X (0 = off)
@@ -17,9 +24,18 @@ Options (each defaults to the scene's own setting):
     --pattern NAME       sobol (Owen-scrambled Sobol, the default) or random (independent)
     --resolution WxH     frame size in pixels (resolution percentage becomes 100 %)
     --max-depth N        longest path (1..1024)
+    --sample-offset K    take samples [K, K + N) of the sample sequence (N = --samples): parts of
+                         one frame rendered on several machines, then `render.py merge`
+    --border X0,Y0,X1,Y1 render only this region (Blender's render border: fractions of the
+                         frame, y from the bottom), uncropped: tiles that `merge` puts together
+    --threads N          CPU threads, one worker process each (1: all in this process). Default:
+                         Render Properties > Performance > Threads; Auto-detect uses every CPU
+                         the process may run on (its affinity: taskset, cgroups); `blender -t N`
+                         is honoured as Blender's own override
     --reference REF.exr  print relMSE (eps 1e-2) against this linear image (R, G, B
                          channels, the render's size) as passes complete and at the end
-    --no-progress        no progress bar on stderr
+    --no-progress        no progress on stderr (a bar on a terminal; without one, e.g. in a
+                         farm's log, one line every few seconds)
 Photon mapping (integrators photon and ppm; radii in metres, 0 = scene-relative default):
     --photons N          photon paths for the global map (ppm: per pass)
     --caustic-photons N  photon paths for the caustic map
@@ -39,10 +55,19 @@ Irradiance cache (integrator icache; also reads the photon options):
     --icache-gather NAME photon (the global map) or path (path-traced gather rays)
     --icache-view NAME   full, or records (record positions as dots), indirect (the cache alone)
 
+Merge: `render.py merge PART.exr ... --output OUT.exr` combines EXRs that render.py wrote of
+one frame - disjoint sample ranges (--sample-offset), tiles (--border) or both - weighting each
+pixel by the samples each part took there (read from the parts' metadata). The merge of any
+split equals the render of all the samples at once to float32 rounding. Parts of different
+scenes or settings (the metadata's scene digest), of different seeds, with overlapping sample
+ranges, cropped, or stopped early (time limit, noise target, Ctrl-C: unequal sample counts) are
+refused with one line (exit 2).
+
 The .blend is only read: settings are changed on the loaded copy in memory and nothing
 is saved. The image is written to a hidden temporary file beside the output, checked, and
 renamed into place: a failed write (full disk, permission) exits 1 and leaves a previous
-file at that path untouched. Exit codes: 0 done, 1 render failed, 2 bad input (file, option, scene),
+file at that path untouched. Exit codes: 0 done, 1 render failed (also: the Ember engine could not be loaded or
+registered - render.py never renders with another engine), 2 bad input (file, option, scene),
 130 interrupted (Ctrl-C), 143 terminated (SIGTERM): one line, the render stops within about
 a second (a second signal stops at once) and no output file is written.
 
@@ -61,6 +86,7 @@ import shutil
 import signal
 import sys
 import math
+import re
 import tempfile
 import time
 
@@ -175,6 +201,19 @@ def _resolution(text):
     return w, h
 
 
+def _border(text):
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 4 or not all(0 <= v <= 1 for v in values):
+        raise argparse.ArgumentTypeError(f"expected four fractions X0,Y0,X1,Y1 in 0..1, got {text!r}")
+    x0, y0, x1, y1 = values
+    if not (x0 < x1 and y0 < y1):
+        raise argparse.ArgumentTypeError(f"the border's X0 < X1 and Y0 < Y1 must hold, got {text!r}")
+    return values
+
+
 def build_parser(blend_required: bool) -> argparse.ArgumentParser:
     p = _Parser(prog="render.py", description="Render a .blend with Ember, headless.",
                 epilog="Options left out keep the scene's own settings.")
@@ -193,7 +232,20 @@ def build_parser(blend_required: bool) -> argparse.ArgumentParser:
     for option, prop, kind, text in PHOTON_OPTIONS:
         p.add_argument(option, dest=prop, type=kind, help=text)
     p.add_argument("--reference", help="linear EXR to print relMSE against while rendering")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--sample-offset", type=_non_negative_int,
+                   help="first sample index: render samples [K, K + samples) (a part for render.py merge)")
+    p.add_argument("--border", type=_border, help="render border X0,Y0,X1,Y1 (fractions, y up), uncropped")
+    p.add_argument("--threads", type=_int_at_least(1, 1024),
+                   help="CPU threads (worker processes); default: the scene's setting, Auto-detect = "
+                        "the CPUs this process may use (affinity)")
+    p.add_argument("--scheduler", help="render on Dask: tcp://HOST:PORT of a scheduler, or local:N workers")
+    p.add_argument("--chunk-samples", type=_positive_int,
+                   help="with --scheduler: at most this many samples per task (frames split, then merged)")
+    p.add_argument("--send-blend", action="store_true",
+                   help="with --scheduler: send the .blend's bytes to the workers (else they read its path)")
+    p.add_argument("--frames", help="frames to render: 5, 1-250, 1,3,10-12 or all (one file each)")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress (a bar on a terminal, else a log line every few seconds)")
     return p
 
 
@@ -234,14 +286,20 @@ def _check_output(path: pathlib.Path) -> str:
 
 
 class _Follower:
-    """A final.listeners entry: progress bar, Ctrl-C stop, the film and errors."""
+    """A final.listeners entry: progress (a bar on a terminal, log lines without one),
+    Ctrl-C stop, the film, the scene's digest and errors."""
 
-    def __init__(self, show_progress: bool, reference=None):
+    LOG_EVERY = 5.0  # seconds between progress lines in a log (no terminal)
+
+    def __init__(self, show_progress: bool, reference=None, log: bool = False, frame=None):
         self.show_progress = show_progress
         self.reference = reference  # _Reference or None
+        self.log, self.frame = log, frame
+        self.last_log = time.perf_counter()
         self.bar = None
         self.bar_layer = None
         self.layers = {}  # layer -> (stats, image, border)
+        self.digests = {}  # layer -> engine.scene.scene_digest of what was rendered
         self.errors = []  # (message, user_error)
 
     # final.RenderListener interface -------------------------------------------------
@@ -253,8 +311,15 @@ class _Follower:
             sys.stderr.write(f"\r{layer}: export: {text[:60]:<60}")
             sys.stderr.flush()
 
+    def on_scene(self, layer, scene):
+        from ember.engine.scene import scene_digest
+        self.digests[layer] = scene_digest(scene)
+
     def on_progress(self, layer, progress):
         error = self.reference.update(progress, self.bar is None) if self.reference else None
+        if self.log and time.perf_counter() - self.last_log >= self.LOG_EVERY:
+            self.last_log = time.perf_counter()
+            print(log_line(self.frame, layer, progress), file=sys.stderr, flush=True)
         if not self.show_progress:
             return
         if self.bar is None or self.bar_layer != layer:
@@ -428,7 +493,6 @@ class _Reference:
 
 def _apply_settings(scene, args) -> None:
     """Command-line overrides onto the in-memory scene (never saved)."""
-    scene.render.engine = 'EMBER'
     ember = scene.ember
     if args.samples is not None:
         ember.samples = args.samples
@@ -460,9 +524,44 @@ def _apply_settings(scene, args) -> None:
             names = ", ".join(k.lower() for k in items)
             raise UsageError(f"unknown integrator {args.integrator!r} (choose one of: {names})")
         ember.integrator = wanted
+    if args.sample_offset is not None:
+        ember.sample_offset = args.sample_offset
+    if args.border is not None:
+        r = scene.render
+        r.use_border, r.use_crop_to_border = True, False
+        r.border_min_x, r.border_min_y, r.border_max_x, r.border_max_y = args.border
+    if args.threads is not None:  # Blender's own setting, which `blender -t N` overrides the same way
+        scene.render.threads_mode = 'FIXED'
+        scene.render.threads = args.threads
     if args.resolution is not None:
         (scene.render.resolution_x, scene.render.resolution_y,
          scene.render.resolution_percentage) = blender_resolution(*args.resolution)
+
+
+def log_line(frame, layer: str, progress) -> str:
+    """One progress line for a log: frame, samples, elapsed, estimated remaining, rays/s."""
+    where = f"frame {frame} | " if frame is not None else ""
+    stage = getattr(progress, "stage", "pixels")
+    remaining = ""
+    if 0 < progress.fraction < 1:
+        remaining = f" | ~{progress.elapsed * (1 - progress.fraction) / progress.fraction:.0f} s left"
+    return (f"Ember: {where}{layer} | {stage if stage != 'pixels' else 'sample'} "
+            f"{progress.samples_done}/{progress.samples_target} | {progress.elapsed:.1f} s{remaining} | "
+            f"{_fmt_rate(progress.rays_per_second)}")
+
+
+def exr_metadata(stats, digest: str, border, frame: int, layer: str) -> dict:
+    """What an Ember EXR records about its render (render.py merge reads it back)."""
+    s = stats.settings
+    offset = getattr(s, "sample_offset", 0)
+    return {
+        "ember/engine": "Ember", "ember/version": _version(), "ember/integrator": s.integrator,
+        "ember/samples": int(stats.samples), "ember/seed": int(s.seed), "ember/pattern": s.pattern,
+        "ember/sampleOffset": int(offset), "ember/sampleRange": f"[{offset}, {offset + stats.samples})",
+        "ember/renderSeconds": float(stats.elapsed), "ember/stoppedBy": stats.stopped_by or "done",
+        "ember/border": list(border), "ember/frame": int(frame), "ember/viewLayer": layer,
+        "ember/sceneDigest": digest,
+    }
 
 
 def blender_resolution(width: int, height: int) -> tuple[int, int, int]:
@@ -495,6 +594,11 @@ def _clean_blender_error(text: str) -> str:
     return text[len("Error: "):] if text.startswith("Error: ") else text
 
 
+class EngineMissing(Exception):
+    """The Ember engine could not be loaded or registered: one line, exit code 1. render.py
+    never lets Blender fall back to another engine (a farm would get EEVEE frames)."""
+
+
 def _load_ember():
     if str(HERE) not in sys.path:
         sys.path.insert(0, str(HERE))
@@ -502,7 +606,82 @@ def _load_ember():
     return load_ember()
 
 
+def _register_ember():
+    """Load and register the add-on; EngineMissing if either fails."""
+    try:
+        ember = _load_ember()
+        ember.register()
+        from ember.engine.blender import registration
+        registration.check_runtime()
+    except Exception as e:  # any failure: missing wheel, bad install, registration error
+        detail = f"{type(e).__name__}: {e}".strip().splitlines()[0][:200]
+        raise EngineMissing(f"the Ember engine is not available: the add-on failed to load ({detail})")
+    return ember
+
+
+def _require_ember(scene) -> None:
+    """Select EMBER on the scene and check that Blender really has it."""
+    try:
+        scene.render.engine = 'EMBER'
+    except (TypeError, ValueError, AttributeError):
+        pass
+    if scene.render.engine != 'EMBER':
+        raise EngineMissing("the Ember engine is not available: the render engine 'EMBER' is not registered "
+                            f"(the scene would render with {scene.render.engine})")
+
+
+def parse_frames(spec: str, scene_range: tuple[int, int, int]) -> list[int]:
+    """'5', '1-250', '1,3,10-12' or 'all' (scene_range = (start, end, step)) -> frames in the
+    order given, repeats dropped."""
+    text = spec.strip().lower()
+    if text == "all":
+        start, end, step = scene_range
+        frames = list(range(start, end + 1, max(step, 1)))
+    else:
+        frames = []
+        for part in text.split(","):
+            m = re.fullmatch(r"\s*(-?\d+)\s*(?:-\s*(-?\d+)\s*)?", part)
+            if m is None:
+                raise UsageError(f"--frames: expected frames such as 5, 1-250, 1,3,10-12 or all, got {spec!r}")
+            a = int(m.group(1))
+            b = int(m.group(2)) if m.group(2) is not None else a
+            if b < a:
+                raise UsageError(f"--frames: range {part.strip()!r} ends before it starts")
+            frames.extend(range(a, b + 1))
+    if not frames:
+        raise UsageError(f"--frames {spec!r}: no frames (scene range {scene_range[0]}-{scene_range[1]})")
+    if len(frames) > 1_000_000:
+        raise UsageError(f"--frames {spec!r}: more than a million frames")
+    return list(dict.fromkeys(frames))
+
+
+def frame_path(path: pathlib.Path, frame: int, numbered: bool) -> pathlib.Path:
+    """The output path of `frame`: the last run of '#' in the file name becomes the frame
+    number zero-padded to its length (Blender's rule); without '#', `numbered` puts four
+    digits before the extension (out.png -> out0001.png)."""
+    name = path.name
+    runs = list(re.finditer(r"#+", name))
+    if runs:
+        m = runs[-1]
+        name = name[:m.start()] + f"{frame:0{len(m.group())}d}" + name[m.end():]
+    elif numbered:
+        name = f"{path.stem}{frame:04d}{path.suffix}"
+    return path.with_name(name)
+
+
+def _version() -> str:
+    """The add-on's version (blender_manifest.toml)."""
+    try:
+        import tomllib
+        with open(HERE / "blender_manifest.toml", "rb") as fh:
+            return str(tomllib.load(fh).get("version", "unknown"))
+    except (OSError, ValueError):
+        return "unknown"
+
+
 def run(argv: list[str]) -> int:
+    if argv and argv[0] == "merge":
+        return run_merge(argv[1:])
     t_start = time.perf_counter()
     args = build_parser(blend_required=not IN_BLENDER).parse_args(argv)
 
@@ -540,12 +719,11 @@ def run(argv: list[str]) -> int:
         blend = pathlib.Path(bpy.data.filepath)
 
     STOP.check()
-    ember = _load_ember()
-    ember.register()
+    _register_ember()
     STOP.check()
-    from ember.engine.blender import final
 
     scene = bpy.context.scene
+    _require_ember(scene)
     _apply_settings(scene, args)
     if scene.camera is None:
         raise UsageError(f"the scene '{scene.name}' has no active camera: add one or set Scene > Camera")
@@ -555,81 +733,283 @@ def run(argv: list[str]) -> int:
         scene.render.resolution_y * scene.render.resolution_percentage // 100
     if reference is not None:
         reference.check_size(w, h)
+    frames = None
+    if args.frames is not None:
+        frames = parse_frames(args.frames, (scene.frame_start, scene.frame_end, scene.frame_step))
+        scene.render.use_persistent_data = True  # workers and Embree scenes stay from frame to frame
+    if args.scheduler is not None:
+        return _run_farm(args, argv, blend, output, kind, scene, frames, t_start)
+    job = _Job(blend, kind, reference, show_progress=not args.no_progress, t_start=t_start,
+               numbered=frames is not None)
+    if frames is None:
+        return job.render_frame(scene, scene.frame_current, frame_path(output, scene.frame_current, False))
+    for i, frame in enumerate(frames):
+        STOP.check()
+        scene.frame_set(frame)
+        _require_ember(scene)  # a frame-change handler could have switched it
+        code = job.render_frame(scene, frame, frame_path(output, frame, True), f" ({i + 1}/{len(frames)})")
+        if code != EXIT_OK:
+            return code
+    if len(frames) > 1:
+        print(f"Ember: {len(frames)} frames in {time.perf_counter() - t_start:.2f} s", flush=True)
+    return EXIT_OK
 
-    follower = _Follower(show_progress=not args.no_progress and sys.stderr.isatty(), reference=reference)
-    final.listeners.append(follower)
-    blender_error = None
-    STOP.output = output
-    STOP.check()
-    try:
-        bpy.ops.render.render(write_still=False)
-    except RuntimeError as e:  # ERROR reports (ours and Blender's own) raise here
-        blender_error = _clean_blender_error(e)
-    finally:
-        follower._close_bar()
-        final.listeners.remove(follower)
-    STOP.check()
-    STOP.soft = False  # from here a signal interrupts the write at once
-    if follower.errors:
-        message, user_error = follower.errors[0]
-        print(f"render.py: error: {message}", file=sys.stderr)
-        return EXIT_USAGE if user_error else EXIT_FAILED
-    if blender_error is not None:  # Blender refused before our engine ran (e.g. too small)
-        print(f"render.py: error: {blender_error}", file=sys.stderr)
-        return EXIT_USAGE
-    if not follower.layers:
-        print("render.py: error: nothing was rendered (no enabled view layer?)", file=sys.stderr)
-        return EXIT_FAILED
 
-    # The view layer shown in the Render Result: the window's active one if rendered.
-    active = bpy.context.view_layer.name if bpy.context.view_layer else None
-    layer = active if active in follower.layers else next(iter(follower.layers))
-    stats, image, border = follower.layers[layer]
+# Options the farm sets per task (or that only the caller uses); the rest go to every task.
+_FARM_OWN = {"-o", "--output", "--frames", "--samples", "--sample-offset", "--scheduler", "--chunk-samples",
+             "--send-blend", "--reference", "--no-progress"}
+
+
+def task_options(argv: list[str]) -> list[str]:
+    """The render options of `argv` that every farm task repeats: all but the .blend, the
+    output, the frames, the sample range and the farm's own."""
+    flags = {o for a in build_parser(False)._actions if a.nargs == 0 for o in a.option_strings}
+    out, i = [], 0
+    while i < len(argv):
+        token = argv[i]
+        name = token.split("=", 1)[0]
+        takes_value = token.startswith("-") and name not in flags and "=" not in token
+        if token.startswith("-") and name not in _FARM_OWN:
+            out += argv[i:i + 1 + takes_value]
+        i += 1 + takes_value if token.startswith("-") else 1  # a bare word is the .blend
+    return out
+
+
+def _run_farm(args, argv, blend, output, kind, scene, frames, t_start) -> int:
+    """--scheduler: frames and sample ranges as Dask tasks (engine/parallel/farm.py); each
+    frame is merged and written as soon as its parts are in."""
     from ember.engine import imageio
-    imageio.remove_stale_temporaries(output)  # left by a render killed while writing
+    from ember.engine.merge import MergeError, Part, merge
+    from ember.engine.parallel import farm
+
+    if kind != ".exr":
+        raise UsageError("--scheduler writes .exr frames (partial renders merge in linear float)")
+    if args.reference is not None:
+        raise UsageError("--reference does not apply with --scheduler")
+    numbered = frames is not None
+    frames = frames if numbered else [scene.frame_current]
+    tasks = farm.plan(frames, scene.ember.samples, scene.ember.sample_offset, args.chunk_samples or 0)
+    options = task_options(argv)
+    if args.scheduler.startswith("local:"):
+        try:
+            n = int(args.scheduler.split(":", 1)[1])
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise UsageError(f"--scheduler local:N needs a number of workers >= 1, got {args.scheduler!r}")
+        if args.threads is None:  # the local workers share this machine's CPUs
+            from ember.engine.parallel.workers import available_cores
+            options += ["--threads", str(max(available_cores() // n, 1))]
+    elif not args.scheduler.startswith(("tcp://", "tls://")):
+        raise UsageError(f"--scheduler expects tcp://HOST:PORT or local:N, got {args.scheduler!r}")
+    blend_bytes = blend.read_bytes() if args.send_blend else None
+    where = str(blend.resolve())
+    print(f"Ember: {blend.name}: {len(tasks)} tasks ({len(frames)} frames) on {args.scheduler}", flush=True)
+    expected = {f: sum(t.frame == f for t in tasks) for f in frames}
+    parts = {f: [] for f in frames}
     try:
-        if kind == ".exr":
-            if image is None:
-                raise imageio.OutputError(f"could not write {output}: nothing was rendered")
-            if scene.render.use_border and scene.render.use_crop_to_border:
-                x0, y0, x1, y1 = border
-                image = image[y0:y1, x0:x1]
-            imageio.save_rgba_exr(output, image)
-        else:
-            result = bpy.data.images["Render Result"]
+        client, cluster = farm.connect(args.scheduler)
+    except (OSError, TimeoutError) as e:
+        raise EngineMissing(f"cannot reach the Dask scheduler {args.scheduler}: {e}")
+    except farm.RenderTaskError as e:
+        raise EngineMissing(str(e))
+    t_farm = time.perf_counter()
 
-            def save_png(tmp):
-                result.save_render(filepath=str(pathlib.Path(tmp).resolve()), scene=scene)
+    def on_task(done, total, task, result):
+        print(f"Ember: task {done}/{total}: {task.describe()} done, {time.perf_counter() - t_farm:.1f} s",
+              flush=True)
 
-            size = None
-            if image is not None:  # the PNG is the film's size, or the border's when cropped
-                size = (image.shape[1], image.shape[0])
+    try:
+        futures = farm.submit(client, tasks, str(HERE / "render.py"), None if args.send_blend else where,
+                              blend_bytes, options)
+        for task, result in farm.gather(futures, on_task):
+            STOP.check()
+            parts[task.frame].append(result["exr"])
+            if len(parts[task.frame]) == expected[task.frame]:
+                path = frame_path(output, task.frame, numbered)
+                _write_farm_frame(path, parts.pop(task.frame), imageio, Part, merge)
+                print(f"Ember: {blend.name} frame {task.frame} -> {path}: {expected[task.frame]} part(s)", flush=True)
+    except farm.RenderTaskError as e:
+        print(f"render.py: error: {e}", file=sys.stderr)
+        return EXIT_FAILED
+    except (MergeError, imageio.OutputError) as e:
+        print(f"render.py: error: {e}", file=sys.stderr)
+        return EXIT_FAILED
+    except Exception as e:  # Dask's own: KilledWorker (a task whose workers kept dying), lost scheduler
+        print(f"render.py: error: the farm failed ({type(e).__name__}: {str(e).splitlines()[0][:200] if str(e) else ''})",
+              file=sys.stderr)
+        return EXIT_FAILED
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    print(f"Ember: {len(frames)} frames in {time.perf_counter() - t_start:.2f} s on {args.scheduler}", flush=True)
+    return EXIT_OK
+
+
+def _write_farm_frame(path, datas, imageio, Part, merge) -> None:
+    """One part: its bytes as they are; several: merged (engine/merge.py)."""
+    if len(datas) == 1:
+        def write(tmp):
+            with open(tmp, "wb") as fh:
+                fh.write(datas[0])
+        imageio.write_atomically(path, write, imageio.check_exr)
+        return
+    with tempfile.TemporaryDirectory(prefix="ember-merge-") as tmp:
+        parts = []
+        for i, data in enumerate(datas):
+            part = pathlib.Path(tmp) / f"part{i}.exr"
+            part.write_bytes(data)
+            channels, header = imageio.read_exr(part)
+            parts.append(Part.from_exr(f"{path.name} part {i}", channels, header))
+    image, header = merge(parts)
+    imageio.save_rgba_exr(path, image, header)
+
+
+class _Job:
+    """Renders frames of the loaded scene one at a time and writes each file."""
+
+    def __init__(self, blend, kind, reference, show_progress, t_start, numbered):
+        self.blend, self.kind, self.reference = blend, kind, reference
+        self.show_progress, self.t_start, self.numbered = show_progress, t_start, numbered
+
+    def render_frame(self, scene, frame: int, output: pathlib.Path, count: str = "") -> int:
+        import bpy
+        from ember.engine.blender import final
+        t_frame = time.perf_counter()
+        tty = sys.stderr.isatty()
+        follower = _Follower(show_progress=self.show_progress and tty, reference=self.reference,
+                             log=self.show_progress and not tty, frame=frame if self.numbered else None)
+        final.listeners.append(follower)
+        blender_error = None
+        STOP.output = output
+        STOP.check()
+        try:
+            bpy.ops.render.render(write_still=False)
+        except RuntimeError as e:  # ERROR reports (ours and Blender's own) raise here
+            blender_error = _clean_blender_error(e)
+        finally:
+            follower._close_bar()
+            final.listeners.remove(follower)
+        STOP.check()
+        STOP.soft = False  # from here a signal interrupts the write at once
+        try:
+            code = self._write(scene, frame, output, follower, blender_error, t_frame, count)
+        finally:
+            STOP.soft = True
+        return code
+
+    def _write(self, scene, frame, output, follower, blender_error, t_frame, count) -> int:
+        import bpy
+        if follower.errors:
+            message, user_error = follower.errors[0]
+            print(f"render.py: error: {message}", file=sys.stderr)
+            return EXIT_USAGE if user_error else EXIT_FAILED
+        if blender_error is not None:  # Blender refused before our engine ran (e.g. too small)
+            print(f"render.py: error: {blender_error}", file=sys.stderr)
+            return EXIT_USAGE
+        if not follower.layers:
+            print("render.py: error: nothing was rendered by Ember (no enabled view layer?)", file=sys.stderr)
+            return EXIT_FAILED
+        w = scene.render.resolution_x * scene.render.resolution_percentage // 100
+        h = scene.render.resolution_y * scene.render.resolution_percentage // 100
+
+        # The view layer shown in the Render Result: the window's active one if rendered.
+        active = bpy.context.view_layer.name if bpy.context.view_layer else None
+        layer = active if active in follower.layers else next(iter(follower.layers))
+        stats, image, border = follower.layers[layer]
+        from ember.engine import imageio
+        imageio.remove_stale_temporaries(output)  # left by a render killed while writing
+        try:
+            if self.kind == ".exr":
+                if image is None:
+                    raise imageio.OutputError(f"could not write {output}: nothing was rendered")
+                header = exr_metadata(stats, follower.digests.get(layer, ""), border, frame, layer)
                 if scene.render.use_border and scene.render.use_crop_to_border:
                     x0, y0, x1, y1 = border
-                    size = (x1 - x0, y1 - y0)
-            imageio.write_atomically(output, save_png, lambda tmp: imageio.check_png(tmp, size))
+                    image = image[y0:y1, x0:x1]
+                    header["ember/crop"] = [x0, y0, x1, y1]
+                imageio.save_rgba_exr(output, image, header)
+            else:
+                result = bpy.data.images["Render Result"]
+
+                def save_png(tmp):
+                    result.save_render(filepath=str(pathlib.Path(tmp).resolve()), scene=scene)
+
+                size = None
+                if image is not None:  # the PNG is the film's size, or the border's when cropped
+                    size = (image.shape[1], image.shape[0])
+                    if scene.render.use_border and scene.render.use_crop_to_border:
+                        x0, y0, x1, y1 = border
+                        size = (x1 - x0, y1 - y0)
+                imageio.write_atomically(output, save_png, lambda tmp: imageio.check_png(tmp, size))
+        except imageio.OutputError as e:
+            print(f"render.py: error: {e}", file=sys.stderr)
+            return EXIT_FAILED
+        if len(follower.layers) > 1 and self.kind == ".exr":
+            print(f"note: {len(follower.layers)} view layers rendered; {output} holds '{layer}'",
+                  file=sys.stderr)
+
+        samples = min(s.samples for s, _, _ in follower.layers.values())
+        rays = sum(s.rays for s, _, _ in follower.layers.values())
+        render_s = sum(s.elapsed for s, _, _ in follower.layers.values())
+        extra = ""
+        if stats.noise is not None and math.isfinite(stats.noise):
+            extra += f", noise {stats.noise:.4f}"
+        if stats.stopped_by in ("time limit", "noise target"):
+            extra += f", stopped at the {stats.stopped_by}"
+        if self.reference is not None:
+            full = follower.layers[layer][1]  # the full-frame image, before any crop
+            extra += f", relMSE {self.reference.error(full):.4e} (eps {self.reference.metrics.EPS:g})"
+        nonfinite = sum(int(getattr(s, "nonfinite", 0)) for s, _, _ in follower.layers.values())
+        where = f" frame {frame}{count}" if self.numbered else ""
+        b = stats.builds
+        total = time.perf_counter() - (t_frame if self.numbered else self.t_start)
+        print(f"Ember: {self.blend.name}{where} -> {output}: {w}x{h}, {samples} samples, "
+              f"render {render_s:.2f} s, total {total:.2f} s, "
+              f"{_fmt_rate(rays / max(render_s, 1e-9))}, {stats.processes} worker processes "
+              f"({b.get('workers', 0)} started, {b.get('embree', 0)} Embree and {b.get('lights', 0)} light builds), "
+              f"{nonfinite} non-finite samples{extra}", flush=True)
+        return EXIT_OK
+
+
+
+def run_merge(argv: list[str]) -> int:
+    p = _Parser(prog="render.py merge", description="Merge partial Ember EXRs of one frame.")
+    p.add_argument("parts", nargs="+", help="EXRs written by render.py (sample ranges, tiles)")
+    p.add_argument("-o", "--output", required=True, help="the merged .exr")
+    args = p.parse_args(argv)
+    output = pathlib.Path(args.output)
+    if _check_output(output) != ".exr":
+        raise UsageError(f"merge writes an .exr, got {str(output)!r}")
+    _load_ember()
+    from ember.engine import imageio
+    from ember.engine.merge import MergeError, Part, merge
+    parts = []
+    for name in args.parts:
+        path = pathlib.Path(name)
+        if not path.is_file():
+            raise UsageError(f"part not found: {path}")
+        try:
+            channels, header = imageio.read_exr(path)
+        except (OSError, RuntimeError, ValueError) as e:
+            raise UsageError(f"cannot read {path}: {e}")
+        try:
+            parts.append(Part.from_exr(path.name, channels, header))
+        except MergeError as e:
+            raise UsageError(str(e))
+    try:
+        image, header = merge(parts)
+    except MergeError as e:
+        raise UsageError(str(e))
+    imageio.remove_stale_temporaries(output)
+    try:
+        imageio.save_rgba_exr(output, image, header)
     except imageio.OutputError as e:
         print(f"render.py: error: {e}", file=sys.stderr)
         return EXIT_FAILED
-    if len(follower.layers) > 1 and kind == ".exr":
-        print(f"note: {len(follower.layers)} view layers rendered; {output} holds '{layer}'",
-              file=sys.stderr)
-
-    samples = min(s.samples for s, _, _ in follower.layers.values())
-    rays = sum(s.rays for s, _, _ in follower.layers.values())
-    render_s = sum(s.elapsed for s, _, _ in follower.layers.values())
-    extra = ""
-    if stats.noise is not None and math.isfinite(stats.noise):
-        extra += f", noise {stats.noise:.4f}"
-    if stats.stopped_by in ("time limit", "noise target"):
-        extra += f", stopped at the {stats.stopped_by}"
-    if reference is not None:
-        full = follower.layers[layer][1]  # the full-frame image, before any crop
-        extra += f", relMSE {reference.error(full):.4e} (eps {reference.metrics.EPS:g})"
-    nonfinite = sum(int(getattr(s, "nonfinite", 0)) for s, _, _ in follower.layers.values())
-    print(f"Ember: {blend.name} -> {output}: {w}x{h}, {samples} samples, "
-          f"render {render_s:.2f} s, total {time.perf_counter() - t_start:.2f} s, "
-          f"{_fmt_rate(rays / max(render_s, 1e-9))}, {nonfinite} non-finite samples{extra}", flush=True)
+    print(f"Ember: merged {len(parts)} parts -> {output}: {image.shape[1]}x{image.shape[0]}, "
+          f"samples {header['ember/sampleRange']}", flush=True)
     return EXIT_OK
 
 
@@ -642,6 +1022,9 @@ def main() -> int:
     except UsageError as e:
         print(f"render.py: error: {e}", file=sys.stderr)
         return EXIT_USAGE
+    except EngineMissing as e:
+        print(f"render.py: error: {e}", file=sys.stderr)
+        return EXIT_FAILED
     except KeyboardInterrupt:
         if not STOP.requested:  # raised by Python itself (no handler yet)
             print("Interrupted.", file=sys.stderr)

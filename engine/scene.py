@@ -430,6 +430,12 @@ class Settings:
     icache_weight: str = "ward"  # interpolation weight: "ward" (the seed) or "tabellion" (Tabellion-Lamorlette)
     icache_gather: str = "photon"  # radiance at gather hits: "photon" (global map, the seed's) or "path"
     icache_view: str = "full"  # "full", or the debug view "records" (records as dots)
+    # First sample index: a render takes samples [sample_offset, sample_offset + samples) of
+    # the one sequence, so renders of disjoint ranges merge into the render of their union.
+    sample_offset: int = 0
+    # Keep worker processes, Embree scenes and light tables for the next render (Blender's
+    # Persistent Data; animations): only the scene parts that changed are built again.
+    persistent: bool = False
 
     def __post_init__(self):
         if self.border is None:
@@ -491,6 +497,52 @@ def to_plain(obj):
     if dataclasses.is_dataclass(obj):
         return {f.name: to_plain(getattr(obj, f.name)) for f in fields(obj)}
     return obj
+
+
+# Settings that say how many samples to take, where and how fast - not what the image
+# converges to: partial renders differing only in these merge into one (render.py merge).
+SAMPLING_ONLY = ("samples", "sample_offset", "time_limit", "noise_target", "threads", "batch_size", "border",
+                 "seed", "persistent")
+
+
+def digest(value) -> str:
+    """SHA-1 of a plain value (to_plain: nested dicts, tuples, arrays, scalars)."""
+    import hashlib
+
+    h = hashlib.sha1()
+
+    def feed(key, value):
+        h.update(key.encode())
+        if isinstance(value, dict):
+            for k in sorted(value):
+                feed(f"{key}.{k}", value[k])
+        elif isinstance(value, (list, tuple)):
+            for i, v in enumerate(value):
+                feed(f"{key}[{i}]", v)
+        elif isinstance(value, np.ndarray) and value.dtype == object:
+            feed(key, value.tolist())
+        elif isinstance(value, np.ndarray):
+            h.update(f"{value.dtype}{value.shape}".encode())
+            h.update(np.ascontiguousarray(value).tobytes())
+        else:
+            h.update(repr(value).encode())
+
+    feed("", value)
+    return h.hexdigest()
+
+
+def part_digests(scene: "Scene") -> dict[str, str]:
+    """Part name (mesh, materials, lights, world, camera, settings) -> digest: what changed
+    between two renders (persistent data rebuilds only that)."""
+    return {f.name: digest(to_plain(getattr(scene, f.name))) for f in fields(scene)}
+
+
+def scene_digest(scene: "Scene") -> str:
+    """Digest of the scene's arrays and settings but SAMPLING_ONLY: equal digests mean the
+    same image up to which samples of which pixels were taken (the seed is compared apart)."""
+    plain = to_plain(scene)
+    plain["settings"] = {k: v for k, v in plain["settings"].items() if k not in SAMPLING_ONLY}
+    return digest(plain)
 
 
 def scene_from_plain(data: dict) -> "Scene":

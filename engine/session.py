@@ -15,7 +15,6 @@ API is not thread-safe), at least every `UPDATE_INTERVAL` seconds.
 """
 from __future__ import annotations
 
-import os
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
@@ -30,6 +29,7 @@ from .integrators.base import Stage
 from .parallel import workers
 from .parallel.shared import Publisher
 from .scene import Scene, recentred
+from . import tracer as tracer_mod
 from .tracer import Tracer
 from .validation import has_light, validate
 
@@ -66,6 +66,10 @@ class RenderStats:
     processes: int = 0  # worker processes used (0: traced in the render process)
     stage_seconds: dict = field(default_factory=dict)  # stage name -> wall seconds (all rounds)
     counters: dict = field(default_factory=dict)  # the integrator's figures (photons stored, ...)
+    settings: object = None  # the scene's Settings as rendered (integrator, seed, sample range)
+    # What this render built: {"workers": processes started, "embree": Embree scenes, "lights":
+    # light tables} (in one worker; all 0 on a frame that persistent data served whole).
+    builds: dict = field(default_factory=dict)
 
     def summary(self) -> str:
         state = {"cancel": "cancelled", "": "done"}.get(self.stopped_by, f"stopped at the {self.stopped_by}")
@@ -99,14 +103,20 @@ class RenderSession:
         self.integrator = integrators.create(scene)  # the render-process side: stages, reduce
         self.layout = self.integrator.layout
         self.film = Film(s.width, s.height)
-        cores = s.threads or os.cpu_count() or 1
+        cores = s.threads or workers.available_cores()
         # Worker processes pay ~1 s to start; worth it only for renders of several items.
         self.processes = (cores if cores > 1 and self.integrator.work_items() >= 2 * cores and workers.can_spawn()
                           else 0)
         # Embree, light tables and the integrator's tracing side live where the tracing
         # happens: here, or in each worker only (not here too: an 8k environment table is
         # hundreds of MB).
-        self.tracer = None if self.processes else Tracer(scene)
+        # Persistent data (Settings.persistent): the last render's tracer or worker pool
+        # is reused, rebuilding only what changed; without it nothing is kept.
+        self._builds0 = (dict(tracer_mod.BUILDS), workers.STARTED[0])
+        if not s.persistent:
+            workers.release_kept()
+            tracer_mod.forget()
+        self.tracer = None if self.processes else tracer_mod.tracer_for(scene)
         if not has_light(scene):
             self.warnings.append("The scene has no lights, no emissive materials and a black world: "
                                  "the image will be black.")
@@ -121,7 +131,7 @@ class RenderSession:
             seg_end = min(len(k), cut + n_pixels - k[cut] % n_pixels)
             self.film.add(self.layout.pixel[k[cut:seg_end] % n_pixels], L[cut:seg_end])
             if (k[seg_end - 1] + 1) % n_pixels == 0:  # the segment completed a pass
-                self.film.end_pass(int(k[seg_end - 1] + 1) // n_pixels)
+                self.film.end_pass(int(k[seg_end - 1] + 1) // n_pixels - self.scene.settings.sample_offset)
             cut = seg_end
 
     def run(self, on_update=None, should_stop=None) -> RenderStats:
@@ -129,10 +139,13 @@ class RenderSession:
         run = _Run(self, on_update, should_stop, t0)
         if self.processes:
             backend = _Processes(self.scene, self.processes)
+            builds = backend.builds
         else:
+            builds = {k: v - self._builds0[0][k] for k, v in tracer_mod.BUILDS.items()}
             backend = _InProcess(self.tracer, run.stop)
         publisher = Publisher()
         self.build_seconds += time.perf_counter() - t0
+        completed = False
         try:
             version, round_ = 0, 0
             while not run.ended:
@@ -153,8 +166,9 @@ class RenderSession:
                     if stage.film and stage.publish:
                         run.report(stage, pass_completed=True)
                 round_ += 1
+            completed = True
         finally:
-            backend.close(kill=run.cancelled or run.ended)
+            backend.close(kill=run.cancelled or run.ended, keep=self.scene.settings.persistent and completed)
             publisher.release()
         elapsed = time.perf_counter() - t0
         stopped_by = ""
@@ -167,7 +181,9 @@ class RenderSession:
                            rays_per_second=run.rays / max(elapsed, 1e-9), embree_seconds=run.embree_seconds,
                            build_seconds=self.build_seconds, cancelled=run.cancelled, noise=noise,
                            nonfinite=self.film.nonfinite, stopped_by=stopped_by, processes=self.processes,
-                           stage_seconds=run.stage_seconds, counters=self.integrator.counters())
+                           stage_seconds=run.stage_seconds, counters=self.integrator.counters(),
+                           settings=self.scene.settings,
+                           builds=dict(builds, workers=workers.STARTED[0] - self._builds0[1]))
 
 
 class _Run:
@@ -281,7 +297,7 @@ class _InProcess:
             a.flags.writeable = False  # the same contract as shared memory
         self.tracer.integrator.install(version, arrays)
 
-    def close(self, kill: bool) -> None:
+    def close(self, kill: bool, keep: bool = False) -> None:
         self.stop.set()
         self.pool.shutdown(wait=True)
 
@@ -290,7 +306,16 @@ class _Processes:
     """Items run in worker processes; published arrays go through shared memory."""
 
     def __init__(self, scene: Scene, n: int):
-        self.pool = workers.WorkerPool(scene, n)
+        if scene.settings.persistent:
+            tracer_mod.forget()  # the workers trace: no tracer kept here
+            self.pool = workers.pool_for(n)
+        else:
+            self.pool = workers.WorkerPool(n)
+        try:
+            self.builds = self.pool.load(scene)
+        except BaseException:
+            self.pool.close(kill=True)
+            raise
         self.processes = n
         self.in_flight = 2 * n
 
@@ -300,5 +325,8 @@ class _Processes:
     def install(self, version: int, arrays: dict, publisher: Publisher) -> None:
         self.pool.install(version, publisher.publish(arrays))
 
-    def close(self, kill: bool) -> None:
-        self.pool.close(kill=kill)
+    def close(self, kill: bool, keep: bool = False) -> None:
+        if keep and not kill and self.pool.alive():
+            workers.keep(self.pool)
+        else:
+            self.pool.close(kill=kill)

@@ -15,7 +15,7 @@ from .allocator import keep_freed_memory
 from .integrators import create
 from .integrators.base import Stage, TraceContext
 from .lights.light_set import LightSet
-from .scene import Scene
+from .scene import Scene, part_digests
 
 
 class BatchLayout:
@@ -29,6 +29,7 @@ class BatchLayout:
         self.pixel = self.py * s.width + self.px
         self.n_pixels = len(self.px)
         self.total_paths = s.samples * self.n_pixels
+        self.first_path = s.sample_offset * self.n_pixels  # samples [offset, offset + samples)
         self.n_batches = -(-self.total_paths // s.batch_size)
 
     def paths(self, stage: Stage, item: int) -> np.ndarray:
@@ -37,19 +38,60 @@ class BatchLayout:
         return np.arange(first, min(first + self.batch_size, stage.stop))
 
 
+# What this process has built, for the persistent-data tests and the stats line.
+BUILDS = {"embree": 0, "lights": 0}
+
+
 class Tracer:
-    def __init__(self, scene: Scene):
+    def __init__(self, scene: Scene, previous: "Tracer | None" = None, changed=None):
+        """previous: the tracer of this process's last render, whose Embree scene and light
+        tables are kept where `changed` (names of the scene parts that differ, see
+        scene.part_digests; None = all) allows. The integrator is always new (cheap)."""
         keep_freed_memory()  # in whichever process traces
         s = scene.settings
         self.scene = scene
-        self.accel = Accel(scene.mesh)
-        lights = LightSet(scene.lights, scene.mesh, scene.materials, scene.world, self.accel,
-                          self.accel.scene_radius, s.strategy)
+        changed = None if previous is None or changed is None else set(changed)
+
+        def kept(*parts):
+            return changed is not None and not changed.intersection(parts)
+
+        if kept("mesh"):
+            self.accel = previous.accel
+        else:
+            self.accel = Accel(scene.mesh)
+            BUILDS["embree"] += 1
+        if kept("mesh", "materials", "lights", "world") and previous.scene.settings.strategy == s.strategy:
+            self.lights = previous.lights
+        else:
+            self.lights = LightSet(scene.lights, scene.mesh, scene.materials, scene.world, self.accel,
+                                   self.accel.scene_radius, s.strategy)
+            BUILDS["lights"] += 1
         self.integrator = create(scene)
-        self.integrator.build(TraceContext(scene, self.accel, lights, self.integrator.layout))
+        self.integrator.build(TraceContext(scene, self.accel, self.lights, self.integrator.layout))
 
     def run(self, stage: Stage, item: int, stop=None):
         """(result, rays, embree seconds) of one work item."""
         rays0, embree0 = self.accel.rays, self.accel.embree_seconds
         result = self.integrator.run(stage, item, stop)
         return result, self.accel.rays - rays0, self.accel.embree_seconds - embree0
+
+
+_kept: dict = {}  # "tracer": the last persistent Tracer of this process, "digests": its scene's
+
+
+def forget() -> None:
+    """Drop the kept tracer (its Embree scene and tables)."""
+    _kept.clear()
+
+
+def tracer_for(scene: Scene) -> Tracer:
+    """A Tracer for `scene` in this process, built on the last one when the scene asks for
+    persistent data (and kept for the next render), else from scratch (and nothing kept)."""
+    previous, digests = _kept.pop("tracer", None), _kept.pop("digests", None)
+    if not scene.settings.persistent:
+        return Tracer(scene)
+    now = part_digests(scene)
+    changed = None if digests is None else {k for k in now if now[k] != digests.get(k)}
+    tracer = Tracer(scene, previous, changed)
+    _kept.update(tracer=tracer, digests=now)
+    return tracer

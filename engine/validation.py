@@ -46,6 +46,7 @@ def validate(scene: Scene) -> None:
         problems.append(f"noise target must be >= 0 (got {s.noise_target})")
     if s.integrator not in INTEGRATORS:
         problems.append(f"unknown integrator {s.integrator!r} (use one of {', '.join(INTEGRATORS)})")
+    problems += sample_offset_problems(s)
     problems += photon_problems(s)
     problems += icache_problems(s)
     if problems:
@@ -202,6 +203,19 @@ def has_light(scene: Scene) -> bool:
 
 
 PHOTON_VIEWS = ("full", "global", "caustic", "positions", "indirect")
+
+
+def sample_offset_problems(s) -> list[str]:
+    """A sample offset needs an integrator whose samples are independent of each other."""
+    from .integrators import REGISTRY
+
+    if s.sample_offset < 0:
+        return [f"sample offset must be >= 0 (got {s.sample_offset})"]
+    cls = REGISTRY.get(s.integrator)
+    if s.sample_offset and cls is not None and not cls.sample_offset:
+        return [f"a sample offset does not apply to the '{s.integrator}' integrator (each of its passes "
+                "depends on the ones before; render its frames whole)"]
+    return []
 
 
 def photon_problems(s) -> list[str]:

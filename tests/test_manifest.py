@@ -26,7 +26,9 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 MANIFEST = ROOT / "blender_manifest.toml"
-PACKAGES = ("embreex", "openexr", "scipy", "tqdm", "pykdtree")
+PACKAGES = ("embreex", "openexr", "tqdm", "pykdtree")
+# Wheel name -> the module the add-on imports (colorama: tqdm's own dependency on Windows).
+IMPORTED_AS = {"embreex": "embreex", "openexr": "OpenEXR", "tqdm": "tqdm", "pykdtree": "pykdtree"}
 
 
 def _blender_ext_path() -> pathlib.Path:
@@ -156,3 +158,27 @@ def test_build_archive(blender_ext, manifest, tmp_path):
         assert "__pycache__" not in name, name
     if have_all_wheels:
         assert sum(n.startswith("wheels/") for n in names) == len(manifest["wheels"])
+
+
+def _runtime_imports() -> set:
+    """Top-level modules imported by what the extension ships (the add-on's .py files)."""
+    import ast
+
+    found = set()
+    for path in [ROOT / "__init__.py", ROOT / "render.py", *ROOT.glob("engine/**/*.py"), *ROOT.glob("ui/**/*.py")]:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                found.update(a.name.split(".")[0] for a in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                found.add(node.module.split(".")[0])
+    return found
+
+
+def test_every_wheel_is_imported_at_run_time(manifest):
+    """The zip carries no package that nothing imports (issue 15: 263 MB of SciPy did)."""
+    names = {re.match(r"\./wheels/([A-Za-z0-9_]+)-", w).group(1).lower() for w in manifest["wheels"]}
+    assert names == set(PACKAGES) | {"colorama"}
+    imported = _runtime_imports()
+    for package in PACKAGES:
+        assert IMPORTED_AS[package] in imported, package
+    assert "scipy" not in names

@@ -9,7 +9,7 @@ cd "$here"
 py="${PYTHON:-$here/.venv/bin/python}"
 [ -x "$py" ] || py="$(command -v python3)"
 
-packages=(embreex==4.4.0.post1 OpenEXR==3.5.3 scipy==1.17.1 tqdm==4.70.1)
+packages=(embreex==4.4.0.post1 OpenEXR==3.5.3 tqdm==4.70.1)
 # Oldest platform tag each target accepts; pip also takes older compatible tags
 # (e.g. manylinux_2_17 under manylinux_2_28, macosx_11_0 under macosx_13_0).
 platforms=(manylinux_2_28_x86_64 win_amd64 macosx_13_0_arm64 macosx_13_0_x86_64)

@@ -52,6 +52,18 @@ class EMBER_RENDER_PT_sampling(EmberRenderPanel, bpy.types.Panel):
         col.prop(settings, "pattern")
 
 
+class EMBER_RENDER_PT_sampling_advanced(EmberRenderPanel, bpy.types.Panel):
+    bl_label = "Advanced"
+    bl_parent_id = "EMBER_RENDER_PT_sampling"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.prop(context.scene.ember, "sample_offset")
+
+
 class EMBER_RENDER_PT_light_paths(EmberRenderPanel, bpy.types.Panel):
     bl_label = "Light Paths"
     bl_options = {'DEFAULT_CLOSED'}
@@ -71,6 +83,12 @@ class EMBER_RENDER_PT_performance(EmberRenderPanel, bpy.types.Panel):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
+        rd = context.scene.render
+        col = layout.column(heading="Threads")  # Blender's own setting, as Cycles shows it
+        col.prop(rd, "threads_mode")
+        sub = col.column(align=True)
+        sub.enabled = rd.threads_mode == 'FIXED'
+        sub.prop(rd, "threads")
         layout.prop(context.scene.ember, "batch_size")
 
 
@@ -129,8 +147,8 @@ class EMBER_RENDER_PT_icache(EmberRenderPanel, bpy.types.Panel):
         col.prop(settings, "gather_rays", text="Gather Rays (uncached)")
 
 
-classes = (EMBER_RENDER_PT_sampling, EMBER_RENDER_PT_photons, EMBER_RENDER_PT_icache, EMBER_RENDER_PT_light_paths,
-           EMBER_RENDER_PT_performance)
+classes = (EMBER_RENDER_PT_sampling, EMBER_RENDER_PT_sampling_advanced, EMBER_RENDER_PT_photons,
+           EMBER_RENDER_PT_icache, EMBER_RENDER_PT_light_paths, EMBER_RENDER_PT_performance)
 
 # The COMPAT_ENGINES sets we added ENGINE to (by identity: mixins share one set object).
 _added_to: dict = {}

@@ -88,6 +88,12 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
         items=PATTERN_ITEMS,
         default='SOBOL',
     )
+    sample_offset: IntProperty(
+        name="Sample Offset",
+        description="Take samples [offset, offset + samples) of the sample sequence, so that renders of "
+                    "disjoint ranges (on several machines) merge exactly into one (render.py merge)",
+        default=0, min=0,
+    )
     batch_size: IntProperty(
         name="Batch Size",
         description="Rays traced together in one wavefront; bigger is faster but uses more memory",

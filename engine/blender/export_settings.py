@@ -12,15 +12,16 @@ import dataclasses
 import numpy as np
 
 from ..errors import EmberError
+from ..parallel.workers import available_cores
 from ..rng import PATTERNS
 from ..integrators import NAMES as INTEGRATORS
 from ..scene import FILTERS, Settings
-from ..validation import icache_problems, photon_problems
+from ..validation import icache_problems, photon_problems, sample_offset_problems
 
 _DEFAULTS = Settings()
 
 # scene.ember field -> Settings field (same name); read with getattr so plain bpy works.
-_EMBER_FIELDS = ("samples", "max_depth", "seed", "time_limit", "noise_target", "batch_size",
+_EMBER_FIELDS = ("samples", "sample_offset", "max_depth", "seed", "time_limit", "noise_target", "batch_size",
                  "photons", "caustic_photons", "photon_k", "global_radius", "caustic_radius", "gather_rays",
                  "radiance_photons", "ppm_radius", "ppm_alpha", "icache_rays", "icache_a", "icache_gradients")
 _INTEGRATOR_ENUM = {name.upper(): name for name in INTEGRATORS}  # UI enum id -> registry name
@@ -41,6 +42,19 @@ def border_pixels(fractions, width: int, height: int) -> tuple[int, int, int, in
     bx0, bx1 = int(fx0 * w), int(fx1 * w)
     by0, by1 = int(fy0 * h), int(fy1 * h)  # from the bottom
     return bx0, height - by1, bx1, height - by0
+
+
+def render_threads(render) -> int:
+    """Threads (worker processes) a render may use, as Cycles reads them. render.threads is
+    Blender's effective count (BKE_render_num_threads: `blender -t N`, else the Fixed value,
+    else every CPU of the machine) and `-t N` makes threads_mode read FIXED; Auto-detect is
+    further held to the process's CPU affinity, which Blender's count ignores."""
+    threads = getattr(render, "threads", None)
+    if threads is None:
+        return 0  # a stand-in scene without the property: all cores
+    if getattr(render, "threads_mode", "AUTO") == "FIXED":
+        return max(int(threads), 1)
+    return max(min(int(threads), available_cores()), 1)
 
 
 def _integrator_name(value) -> str:
@@ -78,7 +92,8 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
     value, None = keep) win. Raises EmberError on unknown override keys or bad values."""
     render = scene.render
     width, height = render_size(render)
-    kw = dict(width=width, height=height)
+    kw = dict(width=width, height=height, threads=render_threads(render),
+              persistent=bool(getattr(render, "use_persistent_data", False)))
 
     ember = getattr(scene, "ember", None)
     for name in _EMBER_FIELDS:
@@ -134,4 +149,7 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
     problems = icache_problems(settings)
     if problems:
         raise EmberError("Invalid irradiance-cache settings: " + "; ".join(problems) + ".")
+    problems = sample_offset_problems(settings)
+    if problems:
+        raise EmberError(problems[0][0].upper() + problems[0][1:] + ".")
     return settings

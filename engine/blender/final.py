@@ -42,6 +42,9 @@ class RenderListener:
     def on_export(self, layer: str, text: str) -> None:
         pass
 
+    def on_scene(self, layer: str, scene) -> None:
+        """The exported engine.scene.Scene, before the render starts."""
+
     def on_progress(self, layer: str, progress) -> None:
         pass
 
@@ -177,6 +180,16 @@ def _layer_prefix(depsgraph, layer: str) -> str:
     return f"{layer} | " if n > 1 else ""
 
 
+def _persistent(engine, scene) -> bool:
+    """Keep workers and Embree scenes for the next render: Blender's Persistent Data, and
+    every frame of an animation render but its last."""
+    if scene.render.use_persistent_data:
+        return True
+    if getattr(engine, "is_animation", False):
+        return scene.frame_current + max(scene.frame_step, 1) <= scene.frame_end
+    return False
+
+
 def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
     def export_break():
         return bool(engine.test_break() or _listener_stop())
@@ -185,7 +198,8 @@ def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
     t0 = time.perf_counter()
     # Frame and border exactly as Blender sized the result (the exporter computes the same
     # from scene.render; passing them keeps film and result in step whatever happens there).
-    frame = dict(width=writer.width, height=writer.height, border=writer.border)
+    frame = dict(width=writer.width, height=writer.height, border=writer.border,
+                 persistent=_persistent(engine, depsgraph.scene) or None)
     scene, warnings = export_scene(depsgraph, overrides=frame, test_break=export_break,
                                    progress=_ExportProgress(engine, layer))
     print(f"Ember: {layer}: exported in {time.perf_counter() - t0:.2f} s", flush=True)
@@ -194,6 +208,7 @@ def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
     settings = scene.settings
     if export_break():
         return None, None
+    _notify("on_scene", layer, scene)
 
     engine.update_stats("Ember", "Building")
     session = RenderSession(scene)

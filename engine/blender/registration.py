@@ -31,3 +31,12 @@ def unregister():
     material.unregister()
     properties.unregister()
     _registered = False
+
+
+def check_runtime() -> None:
+    """Import what every render needs but loads lazily (Embree's wheel), so that a broken
+    install fails before a render starts rather than in its first frame."""
+    import importlib
+
+    for module in ("embreex.rtcore", "embreex.rtcore_scene", "embreex.mesh_construction"):
+        importlib.import_module(module)

@@ -57,6 +57,9 @@ class Integrator:
     # Whether the film's noise estimate (passes as independent samples of one mean) describes
     # the image, so that a noise target can stop the render.
     noise_target: ClassVar[bool] = True
+    # Whether a render may take samples [K, K + N) of the sequence (Settings.sample_offset):
+    # every sample independent of the others given the published data.
+    sample_offset: ClassVar[bool] = True
 
     def __init__(self, scene: Scene):
         from ..tracer import BatchLayout
@@ -108,6 +111,11 @@ class Integrator:
         """Published arrays (read-only views), before any item of the next stage runs."""
 
     # --- helpers --------------------------------------------------------------------------
+    def samples_stage(self) -> Stage:
+        """The film stage over all of the render's samples [offset, offset + samples)."""
+        first = self.layout.first_path
+        return self.pixel_stage(first, first + self.layout.total_paths)
+
     def pixel_stage(self, start: int, stop: int, name: str = "pixels") -> Stage:
         """A film stage over flat path indices [start, stop) (pass = k // pixels)."""
         return Stage(name, -(-(stop - start) // self.layout.batch_size), film=True, start=start, stop=stop)

@@ -177,7 +177,7 @@ class PathIntegrator(Integrator):
     description = "Unidirectional path tracing with next-event estimation and MIS (unbiased)"
 
     def stages(self, round: int):
-        return [self.pixel_stage(0, self.layout.total_paths)] if round == 0 else []
+        return [self.samples_stage()] if round == 0 else []
 
     def build(self, ctx) -> None:
         super().build(ctx)

@@ -8,11 +8,18 @@ Scene as plain arrays (no class references, so it works whatever name Blender im
 under), builds its own Embree scene and integrator (engine/tracer.py) and then answers
 requests over its pipes.
 
-Messages are length-prefixed pickles. Parent -> worker: the scene once, then
-("run", stage as a dict, item), ("install", version, shared-memory handle), `None` to quit.
-Worker -> parent: ("ready",), then per run ("done", result, rays, embree_seconds) or
-("error", text). Installs are not answered: the pipe is ordered, so every run sent after an
-install sees the installed arrays.
+Messages are length-prefixed pickles. Parent -> worker: ("scene", parts) at the start of
+every render (part name -> plain arrays, or None for a part unchanged since the last scene:
+persistent data), ("run", stage as a dict, item), ("install", version, shared-memory
+handle), `None` to quit. Worker -> parent, one answer per scene or run, in order: ("done",
+result...) or ("error", text); a scene's result is what it built ({"embree": 0 or 1, ...}).
+Installs are not answered: the pipe is ordered, so every run sent after an install sees the
+installed arrays.
+
+Persistent data: a pool whose render asked for it (Settings.persistent) is kept after the
+render (`keep`) and taken by the next one (`pool_for`) with the same number of workers; its
+workers then rebuild only what changed (engine/tracer.py). A cancelled or failed render
+kills its pool; one without persistent data closes it and any kept one.
 
 Workers ignore SIGINT: a terminal's Ctrl-C reaches the whole process group, and the render
 process alone decides how to stop (it kills the workers). A worker whose parent dies sees
@@ -20,6 +27,7 @@ its stdin close and exits.
 """
 from __future__ import annotations
 
+import atexit
 import dataclasses
 import os
 import pathlib
@@ -57,12 +65,11 @@ def serve(fin, fout) -> None:
 
     from ..integrators.base import Stage
     from ..scene import scene_from_plain
-    from ..tracer import Tracer
+    from ..tracer import BUILDS, Tracer
     from .shared import Attachment
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    tracer = Tracer(scene_from_plain(read_message(fin)))
-    write_message(fout, ("ready",))
+    tracer, plain = None, {}
     current = {}  # array name -> the Attachment holding its latest version
     try:
         while True:
@@ -70,6 +77,16 @@ def serve(fin, fout) -> None:
             if msg is None:
                 return
             try:
+                if msg[0] == "scene":
+                    changed = {name for name, part in msg[1].items() if part is not None}
+                    plain.update({name: part for name, part in msg[1].items() if part is not None})
+                    for attachment in set(current.values()):  # the last render's published arrays
+                        attachment.close()
+                    current = {}
+                    before = dict(BUILDS)
+                    tracer = Tracer(scene_from_plain(plain), tracer, changed)
+                    write_message(fout, ("done", {k: BUILDS[k] - before[k] for k in BUILDS}))
+                    continue
                 if msg[0] == "install":
                     _, version, handle = msg
                     new = Attachment(handle)
@@ -90,6 +107,17 @@ def serve(fin, fout) -> None:
             attachment.close()
 
 
+def available_cores() -> int:
+    """CPUs this process may run on: its affinity mask (taskset, a farm's cgroup pinning)."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except (AttributeError, OSError):  # not Linux
+        return os.cpu_count() or 1
+
+
+STARTED = [0]  # worker processes this process has started (persistent-data tests)
+
+
 def can_spawn() -> bool:
     """A plain Python interpreter is needed; Blender's own binary cannot run the worker."""
     exe = pathlib.Path(sys.executable or "")
@@ -97,16 +125,16 @@ def can_spawn() -> bool:
 
 
 class _Worker:
-    def __init__(self, plain_scene):
+    def __init__(self):
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join([p for p in sys.path if p])
         self.proc = subprocess.Popen([sys.executable, "-u", str(ROOT / "engine" / "parallel" / "worker_main.py"),
                                       str(ROOT)],
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env)
+        STARTED[0] += 1
         self.pending: list[Future] = []
         self.lock = threading.Lock()
-        write_message(self.proc.stdin, plain_scene)
-        self.ready = Future()
+        self.dead = False
         self.reader = threading.Thread(target=self._read, daemon=True, name="ember-worker-reader")
         self.reader.start()
 
@@ -119,9 +147,6 @@ class _Worker:
             if msg is None:
                 self._fail(EmberError("An Ember worker process ended unexpectedly (see the console)."))
                 return
-            if msg[0] == "ready":
-                self.ready.set_result(True)
-                continue
             with self.lock:
                 fut = self.pending.pop(0)
             if msg[0] == "done":
@@ -130,20 +155,25 @@ class _Worker:
                 fut.set_exception(RuntimeError("Ember worker failed:\n" + msg[1]))
 
     def _fail(self, exc):
-        if not self.ready.done():
-            self.ready.set_exception(exc)
         with self.lock:
+            self.dead = True
             pending, self.pending = self.pending, []
         for fut in pending:
             if not fut.done():
                 fut.set_exception(exc)
 
-    def submit(self, stage: dict, item: int) -> Future:
+    def request(self, msg) -> Future:
         fut = Future()
         with self.lock:
+            if self.dead:
+                fut.set_exception(EmberError("An Ember worker process ended unexpectedly (see the console)."))
+                return fut
             self.pending.append(fut)
-            write_message(self.proc.stdin, ("run", stage, item))
+            write_message(self.proc.stdin, msg)
         return fut
+
+    def submit(self, stage: dict, item: int) -> Future:
+        return self.request(("run", stage, item))
 
     def install(self, version: int, handle) -> None:
         with self.lock:
@@ -166,16 +196,30 @@ class _Worker:
 
 
 class WorkerPool:
-    """n worker processes running the work items of one scene's integrator; `submit` returns
-    a Future of (result, rays, embree_seconds). Requests go to the least-loaded worker."""
+    """n worker processes running the work items of one scene's integrator (`load`); `submit`
+    returns a Future of (result, rays, embree_seconds). Requests go to the least-loaded worker."""
 
-    def __init__(self, scene, n: int):
-        from ..scene import to_plain
+    def __init__(self, n: int):
+        self.n = n
+        self.workers = [_Worker() for _ in range(n)]
+        self.digests = {}  # part name -> digest of the scene part the workers hold
 
-        plain = to_plain(scene)
-        self.workers = [_Worker(plain) for _ in range(n)]
-        for w in self.workers:
-            w.ready.result()
+    def load(self, scene) -> dict:
+        """Send `scene`, only the parts that changed since the last load; wait until every
+        worker has built it. Returns what one worker built ({"embree": 0 or 1, ...})."""
+        from ..scene import part_digests, to_plain
+
+        now = part_digests(scene)
+        parts = {name: (to_plain(getattr(scene, name)) if now[name] != self.digests.get(name) else None)
+                 for name in now}
+        futures = [w.request(("scene", parts)) for w in self.workers]
+        self.digests = {}  # unknown until every worker has it
+        built = [f.result()[0] for f in futures]
+        self.digests = now
+        return {k: max(b[k] for b in built) for k in built[0]}
+
+    def alive(self) -> bool:
+        return all(w.proc.poll() is None and not w.dead for w in self.workers)
 
     def submit(self, stage, item: int) -> Future:
         plain = dataclasses.asdict(stage)  # no class references across the pipe
@@ -189,3 +233,31 @@ class WorkerPool:
     def close(self, kill: bool = False) -> None:
         for w in self.workers:
             w.close(kill)
+
+
+_kept: list = []  # the pool a persistent render left for the next one (at most one)
+
+
+def pool_for(n: int) -> WorkerPool:
+    """The kept pool if it has n live workers, else a new one (the kept one closed)."""
+    pool = _kept.pop() if _kept else None
+    if pool is not None and pool.n == n and pool.alive():
+        return pool
+    if pool is not None:
+        pool.close(kill=True)
+    return WorkerPool(n)
+
+
+def keep(pool: WorkerPool) -> None:
+    """Keep `pool` for the next render (closing any other kept one)."""
+    release_kept()
+    _kept.append(pool)
+
+
+def release_kept() -> None:
+    """Close the kept pool (a render without persistent data; process exit)."""
+    while _kept:
+        _kept.pop().close(kill=False)
+
+
+atexit.register(release_kept)

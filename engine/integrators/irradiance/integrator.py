@@ -69,6 +69,7 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
     label = "Irradiance Cache"
     description = ("Irradiance caching with gradients: diffuse indirect light from records of photon-map "
                    "final gathering, interpolated (biased, smooth)")
+    sample_offset = False  # records placed in passes < K serve pass K: no sample range stands alone
 
     def __init__(self, scene):
         super().__init__(scene)

@@ -105,7 +105,7 @@ class PhotonIntegrator(Integrator):
         if round == 0:
             return [Stage("photons", self.n_global_items + self.n_caustic_items, publish=True)]
         if round == 1:  # the photons are reduced: their count decides whether radiance photons pay
-            self._after_photons = [[self.pixel_stage(0, self.layout.total_paths)]]
+            self._after_photons = [[self.samples_stage()]]
             if s.radiance_photons and s.photon_view == "full" and self.n_global_photons:
                 items = -(-(-(-self.n_global_photons // RADIANCE_STRIDE)) // RADIANCE_BATCH)
                 self._after_photons.insert(0, [Stage("radiance", items, publish=True)])

@@ -23,8 +23,8 @@ Storage (`PhotonMap.pack`): float32 position (12 B), octahedral int16 w_p and n_
 Cigolle et al. 2014, "A Survey of Efficient Representations for Independent Unit Vectors"),
 float32 flux (12 B): 32 B per photon. The search structure is pykdtree's (float32 points used in
 place, uint32 permutation, 11-12 B per photon with its nodes); scipy's cKDTree is the fallback
-where pykdtree is missing (it copies the points as float64: 51 B per photon for the tree, 83 B
-in all, over budget).
+where pykdtree is missing but SciPy is there (it copies the points as float64: 51 B per photon
+for the tree, 83 B in all, over budget). The add-on ships pykdtree only.
 bench/photon_map_study.py measures both.
 
 Radiance photons (Christensen 1999, "Faster Photon Map Global Illumination"; pbrt-v2
@@ -48,6 +48,7 @@ import os
 
 import numpy as np
 
+from ...errors import EmberError
 from ...vec import dot, take
 
 KERNELS = ("uniform", "cone", "epanechnikov")
@@ -172,8 +173,12 @@ class _Index:
         self.leafsize = leafsize
         try:
             from pykdtree.kdtree import KDTree
-        except ImportError:  # the fallback where the wheel is missing (tested)
-            from scipy.spatial import cKDTree
+        except ImportError:  # the fallback where the wheel is missing (tested); the add-on ships no SciPy
+            try:
+                from scipy.spatial import cKDTree
+            except ImportError:
+                raise EmberError("Photon mapping needs the pykdtree package, which did not load (on Apple "
+                                 "silicon its wheel needs macOS 14 or later); the path tracer needs no kd-tree.")
 
             self.kind = "cKDTree"
             self._tree = cKDTree(points, leafsize=leafsize, balanced_tree=False, compact_nodes=False)

@@ -39,6 +39,7 @@ class ProgressivePhotonIntegrator(PhotonIntegrator):
     description = "Stochastic progressive photon mapping: photon radii shrink every pass (consistent)"
 
     noise_target = False  # the film's noise estimate sees only the part averaged over passes
+    sample_offset = False  # pass r shrinks the radii of passes < r: no pass stands alone
 
     def __init__(self, scene):
         super().__init__(scene)
