@@ -7,7 +7,8 @@
 For each scene of bench/scenes.py that exists and has a reference (bench/references.py):
 one progressive Ember render per integrator, snapshotted at each budget, and a Cycles
 render per budget plus one at Ember's final sample count (equal samples), all at the
-references' resolution on this machine in this run, one render at a time. Then, on the
+references' resolution (64x64; --resolution N: N x N against bench/references/<scene>_N.exr)
+on this machine in this run, one render at a time. Then, on the
 Cornell box at 256x256: throughput of Ember and Cycles, embreex alone (bench/probe_embree.py,
 1 and 2 threads); and peak memory of render.py at 512x512 (and 2048x2048 without --quick)
 in separate processes. Every measurement records the 1-minute load average.
@@ -64,6 +65,8 @@ def parse_args(argv):
     ap.add_argument("--no-cycles", action="store_true", help="Ember only")
     ap.add_argument("--no-throughput", action="store_true", help="skip the 256x256 throughput study")
     ap.add_argument("--no-memory", action="store_true", help="skip the peak-memory renders")
+    ap.add_argument("--resolution", type=int, metavar="N",
+                    help="N x N renders against bench/references/<scene>_N.exr (default: the references' 64)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", help="output folder")
     ap.add_argument("--merge", action="store_true",
@@ -161,7 +164,8 @@ def bench_scene(bs, args, budgets, integrators, resolution, images=None):
     ref = _reference(bs, resolution)
     result = {"note": bs.note, "file": f"scenes/{bs.file}"}
     if ref is None:
-        result["skipped"] = f"no reference: run  python bench/references.py --only {bs.name}"
+        result["skipped"] = (f"no reference: run  python bench/references.py --only {bs.name}"
+                             f" --resolution {resolution}")
         return result
     h, w = ref["image"].shape[:2]
     result["reference"] = {"path": ref["path"], **ref["header"], "relmse_ref": (
@@ -313,10 +317,13 @@ def main(argv=None):
         raise BenchError(f"unknown integrator(s) {', '.join(unknown)} (Ember has: {', '.join(INTEGRATORS)})")
     from bench.metrics import EPS
     from bench.references import RESOLUTION
+    resolution = args.resolution or RESOLUTION
+    if resolution <= 0:
+        raise BenchError(f"--resolution must be positive, got {resolution}")
 
     t_start = time.perf_counter()
     results = {"run": {"quick": args.quick, "date": datetime.datetime.now().isoformat(timespec="seconds"),
-                       "budgets": list(budgets), "seed": args.seed, "integrators": integrators,
+                       "budgets": list(budgets), "seed": args.seed, "resolution": resolution, "integrators": integrators,
                        "machine": _machine(), "load_start": _load(), "notes": notes,
                        "relmse_eps": EPS}, "scenes": {}}
     for n in notes:
@@ -345,7 +352,7 @@ def main(argv=None):
 
     for bs in scenes:
         print(f"{bs.name}:", flush=True)
-        new = bench_scene(bs, args, budgets, integrators, RESOLUTION, images)
+        new = bench_scene(bs, args, budgets, integrators, resolution, images)
         if args.add_runs and "runs" in results["scenes"].get(bs.name, {}) and "runs" in new:
             results["scenes"][bs.name]["runs"].update(new["runs"])
         else:
