@@ -301,6 +301,7 @@ class _Follower:
         self.layers = {}  # layer -> (stats, image, border)
         self.digests = {}  # layer -> engine.scene.scene_digest of what was rendered
         self.errors = []  # (message, user_error)
+        self.passes = {}  # layer -> {pass name: (H, W, C) image} (enabled passes besides Combined)
 
     # final.RenderListener interface -------------------------------------------------
     def should_stop(self):
@@ -346,6 +347,9 @@ class _Follower:
     def on_error(self, layer, message, user_error):
         self._close_bar()
         self.errors.append((message, user_error))
+
+    def on_layer_passes(self, layer, passes, metadata):
+        self.passes[layer] = passes
 
     # -------------------------------------------------------------------------------
     def _close_bar(self):
@@ -679,6 +683,18 @@ def _version() -> str:
         return "unknown"
 
 
+def _save_multilayer_exr(imageio, output, layer: str, passes: dict, crop, header: dict) -> None:
+    """Every pass into one EXR, channels named as Blender's multilayer files name them."""
+    from ember.engine.passes import BY_NAME
+    channels = {}
+    for name, image in passes.items():
+        for i, letter in enumerate(BY_NAME[name].chan_id):
+            channels[f"{layer}.{name}.{letter}"] = image[crop][..., i]
+    shape = next(iter(channels.values())).shape
+    imageio.write_atomically(output, lambda tmp: imageio.write_exr(tmp, channels, header),
+                             lambda tmp: imageio.check_exr(tmp, shape))
+
+
 def run(argv: list[str]) -> int:
     if argv and argv[0] == "merge":
         return run_merge(argv[1:])
@@ -925,11 +941,16 @@ class _Job:
                 if image is None:
                     raise imageio.OutputError(f"could not write {output}: nothing was rendered")
                 header = exr_metadata(stats, follower.digests.get(layer, ""), border, frame, layer)
+                crop = (slice(None), slice(None))
                 if scene.render.use_border and scene.render.use_crop_to_border:
                     x0, y0, x1, y1 = border
-                    image = image[y0:y1, x0:x1]
+                    crop = (slice(y0, y1), slice(x0, x1))
                     header["ember/crop"] = [x0, y0, x1, y1]
-                imageio.save_rgba_exr(output, image, header)
+                passes = follower.passes.get(layer)
+                if passes:  # every enabled pass, named as Blender's multilayer files: <layer>.<pass>.<channel>
+                    _save_multilayer_exr(imageio, output, layer, {"Combined": image, **passes}, crop, header)
+                else:
+                    imageio.save_rgba_exr(output, image[crop], header)
             else:
                 result = bpy.data.images["Render Result"]
 

@@ -17,10 +17,21 @@ import threading
 
 import numpy as np
 
+from . import passes as passes_mod
+
 
 class Film:
-    def __init__(self, width: int, height: int):
+    def __init__(self, width: int, height: int, passes: tuple = (), transparent: bool = False):
+        """passes: render pass names (engine/passes.py) besides Combined; transparent: alpha is
+        the mean of the samples' "alpha" (film transparency), else 1 where sampled."""
         self.width, self.height = width, height
+        # Per-pass running sums (H*W, channels) of what the samples return under that name;
+        # debug passes are derived from the radiance sums.
+        self.pass_sum = {name: np.zeros((height * width, passes_mod.BY_NAME[name].channels))
+                         for name in passes_mod.needed(passes) if passes_mod.BY_NAME[name].group != "debug"}
+        self.passes_wanted = tuple(passes)
+        if transparent:
+            self.pass_sum["alpha"] = np.zeros((height * width, 1))
         self.sum = np.zeros((height * width, 3))
         self.sum_sq = np.zeros((height * width, 3))
         self.count = np.zeros(height * width, np.int64)
@@ -33,8 +44,10 @@ class Film:
         # samples: progressive photon mapping's photon estimate), or None.
         self.overlay = None
 
-    def add(self, pixel: np.ndarray, L: np.ndarray) -> None:
-        """Add one sample per entry; pixel (N,) flat indices (unique within one call)."""
+    def add(self, pixel: np.ndarray, L: np.ndarray, passes: dict | None = None) -> None:
+        """Add one sample per entry; pixel (N,) flat indices (unique within one call); passes:
+        name -> (N, channels) values of the same samples (names the film does not keep are
+        ignored)."""
         finite = np.isfinite(L)
         bad = 0
         if not finite.all():
@@ -50,6 +63,10 @@ class Film:
             self.sum[pixel] += L
             self.sum_sq[pixel] += L * L
             self.count[pixel] += 1
+            for name, values in (passes or {}).items():
+                acc = self.pass_sum.get(name)
+                if acc is not None:
+                    acc[pixel] += np.where(np.isfinite(values), values, 0.0).reshape(len(L), -1)
 
     def mean(self) -> np.ndarray:
         """(H,W,3) float64 mean radiance (0 where no samples)."""
@@ -69,11 +86,42 @@ class Film:
         return v.reshape(self.height, self.width, 3)
 
     def image(self) -> np.ndarray:
-        """(H,W,4) float32 RGBA, alpha 1 where sampled."""
+        """(H,W,4) float32 RGBA, alpha 1 where sampled (transparent film: the share of camera
+        rays that hit something; the colour is then premultiplied, as Cycles')."""
         rgba = np.zeros((self.height, self.width, 4), np.float32)
         rgba[..., :3] = self.mean()
-        rgba[..., 3] = (self.count.reshape(self.height, self.width) > 0)
+        if "alpha" in self.pass_sum:
+            rgba[..., 3] = self._mean_of("alpha")[..., 0]
+        else:
+            rgba[..., 3] = (self.count.reshape(self.height, self.width) > 0)
         return rgba
+
+    def _mean_of(self, name: str) -> np.ndarray:
+        with self._lock:
+            m = self.pass_sum[name] / np.maximum(self.count, 1)[:, None]
+        return m.reshape(self.height, self.width, -1)
+
+    def pass_image(self, name: str) -> np.ndarray:
+        """(H,W,channels) float32 pass `name` as Blender defines it (engine/passes.py)."""
+        if name == passes_mod.COMBINED.name:
+            return self.image()
+        shape = (self.height, self.width, -1)
+        if name == "Debug Sample Count":
+            return self.count.reshape(shape).astype(np.float32)
+        if name == "Debug Variance":
+            v = self.variance_of_mean()
+            v = np.where(np.isfinite(v), v, 0.0).mean(axis=2, keepdims=True)
+            return v.astype(np.float32)
+        if name == "Depth":  # written by sample 0 only (Cycles): a value, not a mean
+            with self._lock:
+                z = self.pass_sum[name].reshape(shape)
+            return np.where(z > 0, z, passes_mod.DEPTH_MISS).astype(np.float32)
+        m = self._mean_of(name)
+        part = name.rsplit(" ", 1)[-1]
+        if part in ("Direct", "Indirect"):  # stored divided by the colour, as Cycles
+            color = self._mean_of(name.rsplit(" ", 1)[0] + " Color")
+            m = np.divide(m, color, out=np.zeros_like(m), where=color > 0)
+        return m.astype(np.float32)
 
     def end_pass(self, passes: int) -> None:
         """Passes 0 .. passes-1 are complete on every rendered pixel."""

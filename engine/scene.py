@@ -436,6 +436,11 @@ class Settings:
     # Keep worker processes, Embree scenes and light tables for the next render (Blender's
     # Persistent Data; animations): only the scene parts that changed are built again.
     persistent: bool = False
+    # Look-dev (engine/passes.py): render passes besides Combined, by Blender name; film
+    # transparency (camera rays that escape give alpha 0 and no world; the world still lights).
+    passes: tuple = ()
+    film_transparent: bool = False
+    origin: tuple = (0.0, 0.0, 0.0)  # world position of the core's (0, 0, 0) (see recentred)
 
     def __post_init__(self):
         if self.border is None:
@@ -595,4 +600,5 @@ def recentred(scene: Scene, origin=None, mesh_done: bool = False) -> Scene:
     m = np.array(scene.camera.world_from_camera, np.float64)
     m[:3, 3] -= origin
     camera = dataclasses.replace(scene.camera, world_from_camera=m)
-    return dataclasses.replace(scene, mesh=mesh, lights=lights, camera=camera)
+    settings = scene.settings.replace(origin=tuple(float(v) for v in np.add(scene.settings.origin, origin)))
+    return dataclasses.replace(scene, mesh=mesh, lights=lights, camera=camera, settings=settings)

@@ -102,7 +102,7 @@ class RenderSession:
         s = scene.settings
         self.integrator = integrators.create(scene)  # the render-process side: stages, reduce
         self.layout = self.integrator.layout
-        self.film = Film(s.width, s.height)
+        self.film = Film(s.width, s.height, s.passes, s.film_transparent)
         cores = s.threads or workers.available_cores()
         # Worker processes pay ~1 s to start; worth it only for renders of several items.
         self.processes = (cores if cores > 1 and self.integrator.work_items() >= 2 * cores and workers.can_spawn()
@@ -122,14 +122,16 @@ class RenderSession:
                                  "the image will be black.")
         self.build_seconds = time.perf_counter() - t0
 
-    def _add(self, stage: Stage, item: int, L: np.ndarray) -> None:
-        """Add a film item to the film, one pass segment at a time (pixels unique per segment)."""
+    def _add(self, stage: Stage, item: int, L: np.ndarray, passes: dict | None = None) -> None:
+        """Add a film item to the film, one pass segment at a time (pixels unique per segment);
+        passes: render-pass name -> (N, channels) values of the same paths."""
         n_pixels = self.layout.n_pixels
         k = self.layout.paths(stage, item)
         cut = 0
         while cut < len(k):
             seg_end = min(len(k), cut + n_pixels - k[cut] % n_pixels)
-            self.film.add(self.layout.pixel[k[cut:seg_end] % n_pixels], L[cut:seg_end])
+            self.film.add(self.layout.pixel[k[cut:seg_end] % n_pixels], L[cut:seg_end],
+                          {name: v[cut:seg_end] for name, v in passes.items()} if passes else None)
             if (k[seg_end - 1] + 1) % n_pixels == 0:  # the segment completed a pass
                 self.film.end_pass(int(k[seg_end - 1] + 1) // n_pixels - self.scene.settings.sample_offset)
             cut = seg_end
@@ -256,8 +258,9 @@ class _Run:
                     break
                 data, item_rays, item_embree = result
                 if stage.film:
+                    passes = data.pop("passes", None) if isinstance(data, dict) else None
                     L = data.pop("L") if isinstance(data, dict) else data  # dict: L + arrays to reduce
-                    self.session._add(stage, next_done, L)
+                    self.session._add(stage, next_done, L, passes)
                     self.paths_added += len(L)
                 if stage.publish:
                     results.append(data)

@@ -8,13 +8,18 @@ integrator's tracing side - in the render process or, identically, in every work
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from .accel import Accel
 from .allocator import keep_freed_memory
 from .integrators import create
 from .integrators.base import Stage, TraceContext
+from .integrators.first_hit import FirstHit
 from .lights.light_set import LightSet
+from .passes import HIT as HIT_PASSES
+from .rng import Sampler
 from .scene import Scene, part_digests
 
 
@@ -60,20 +65,44 @@ class Tracer:
         else:
             self.accel = Accel(scene.mesh)
             BUILDS["embree"] += 1
-        if kept("mesh", "materials", "lights", "world") and previous.scene.settings.strategy == s.strategy:
+        same_settings = previous is not None and (previous.scene.settings.strategy, previous.scene.settings.film_transparent) \
+            == (s.strategy, s.film_transparent)
+        if kept("mesh", "materials", "lights", "world") and same_settings:
             self.lights = previous.lights
         else:
-            self.lights = LightSet(scene.lights, scene.mesh, scene.materials, scene.world, self.accel,
+            # A transparent film hides the world from camera rays only; it still lights the scene.
+            world = dataclasses.replace(scene.world, visible=False) if s.film_transparent else scene.world
+            self.lights = LightSet(scene.lights, scene.mesh, scene.materials, world, self.accel,
                                    self.accel.scene_radius, s.strategy)
             BUILDS["lights"] += 1
         self.integrator = create(scene)
         self.integrator.build(TraceContext(scene, self.accel, self.lights, self.integrator.layout))
+        needs_hit = s.film_transparent or any(n in HIT_PASSES for n in s.passes)
+        self.first_hit = FirstHit(scene, self.accel) if needs_hit else None
 
     def run(self, stage: Stage, item: int, stop=None):
         """(result, rays, embree seconds) of one work item."""
         rays0, embree0 = self.accel.rays, self.accel.embree_seconds
         result = self.integrator.run(stage, item, stop)
+        if stage.film and self.first_hit is not None:
+            result = with_passes(result, self._first_hit_passes(stage, item))
         return result, self.accel.rays - rays0, self.accel.embree_seconds - embree0
+
+    def _first_hit_passes(self, stage: Stage, item: int) -> dict:
+        s, layout = self.scene.settings, self.integrator.layout
+        k = layout.paths(stage, item)
+        j, sample = k % layout.n_pixels, k // layout.n_pixels
+        sampler = Sampler(s.seed, layout.pixel[j], sample, s.pattern)
+        return self.first_hit.passes(sampler, layout.px[j], layout.py[j], sample)
+
+
+def with_passes(result, passes: dict):
+    """A film item's result (radiance array or dict with "L") with render passes added
+    under "passes" (the session hands them to the film)."""
+    if not isinstance(result, dict):
+        result = {"L": result}
+    result["passes"] = {**result.get("passes", {}), **passes}
+    return result
 
 
 _kept: dict = {}  # "tracer": the last persistent Tracer of this process, "digests": its scene's

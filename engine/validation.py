@@ -15,6 +15,7 @@ from .integrators import NAMES as INTEGRATORS
 from .integrators.irradiance.cache import WEIGHTS
 from .integrators.irradiance.integrator import GATHER_MODES, ICACHE_VIEWS
 from .integrators.photon.photon_map import KERNELS
+from .passes import NAMES as PASS_NAMES
 from .scene import FILTERS, STRATEGIES, Scene
 
 
@@ -49,6 +50,9 @@ def validate(scene: Scene) -> None:
     problems += sample_offset_problems(s)
     problems += photon_problems(s)
     problems += icache_problems(s)
+    unknown = sorted(set(s.passes) - set(PASS_NAMES))
+    if unknown:
+        problems.append(f"unknown render pass(es) {', '.join(unknown)} (use some of {', '.join(PASS_NAMES)})")
     if problems:
         raise EmberError("Invalid render settings: " + "; ".join(problems))
     check_light_values(scene)

@@ -214,3 +214,29 @@ def test_photon_integrators_from_the_command_line(scenes, integrator, args, word
     ch, _ = imageio.read_exr(scenes / "ph.exr")
     img = np.stack([ch[c] for c in "RGB"], axis=-1)
     assert np.isfinite(img).all() and img.mean() > 0
+
+
+def test_multilayer_exr_holds_every_enabled_pass_and_the_metadata(scenes):
+    """A .blend whose view layer enables passes: render.py's EXR is Blender's multilayer layout
+    (<layer>.<pass>.<channel>) with every enabled pass, and the header names engine, version,
+    integrator, samples, seed and time."""
+    build = textwrap.dedent('''
+        import sys, bpy
+        bpy.ops.wm.open_mainfile(filepath=sys.argv[-2])
+        vl = bpy.context.scene.view_layers[0]
+        vl.use_pass_z = vl.use_pass_normal = vl.use_pass_diffuse_direct = vl.use_pass_emit = True
+        bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
+    ''')
+    proc = subprocess.run([sys.executable, "-c", build, str(scenes / "ok.blend"), str(scenes / "passes.blend")],
+                          env=_env(scenes), capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    code, out, err = run(scenes, "passes.blend", "-o", "passes.exr", "--samples", "2", "--seed", "5")
+    assert code == 0, err
+    from ember.engine import imageio
+    channels, header = imageio.read_exr(scenes / "passes.exr")
+    want = {"Combined": "RGBA", "Depth": "Z", "Normal": "XYZ", "Diffuse Direct": "RGB", "Emission": "RGB"}
+    assert set(channels) == {f"ViewLayer.{p}.{c}" for p, cs in want.items() for c in cs}
+    assert channels["ViewLayer.Depth.Z"].shape == (16, 24)
+    assert header["ember/engine"] == "Ember" and header["ember/integrator"] == "path"
+    assert header["ember/samples"] == 2 and header["ember/seed"] == 5
+    assert header["ember/renderSeconds"] > 0 and header["ember/version"]

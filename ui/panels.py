@@ -46,6 +46,7 @@ class EMBER_RENDER_PT_sampling(EmberRenderPanel, bpy.types.Panel):
         col = layout.column()
         col.prop(settings, "integrator")
         col.prop(settings, "samples")
+        col.prop(settings, "preview_samples")
         col.prop(settings, "time_limit")
         col.prop(settings, "noise_target")
         col.prop(settings, "seed")
@@ -147,8 +148,59 @@ class EMBER_RENDER_PT_icache(EmberRenderPanel, bpy.types.Panel):
         col.prop(settings, "gather_rays", text="Gather Rays (uncached)")
 
 
+class EMBER_RENDER_PT_film(EmberRenderPanel, bpy.types.Panel):
+    """Settings Ember reads from Blender and Cycles that had no panel under Ember."""
+    bl_label = "Film"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        scene = context.scene
+        col = layout.column()
+        col.prop(scene.render, "film_transparent", text="Transparent")
+        cycles = getattr(scene, "cycles", None)
+        if cycles is not None:  # Ember reads Cycles' pixel filter (engine/blender/export_settings.py)
+            col.prop(cycles, "pixel_filter_type", text="Pixel Filter")
+            sub = col.column()
+            sub.active = cycles.pixel_filter_type != 'BOX'
+            sub.prop(cycles, "filter_width", text="Width")
+        world = scene.world
+        if world is not None and hasattr(world, "cycles_visibility"):
+            col.prop(world.cycles_visibility, "camera", text="World Visible to Camera")
+        col.prop(context.view_layer, "material_override")
+
+
+class EMBER_VIEWLAYER_PT_passes(EmberRenderPanel, bpy.types.Panel):
+    """The passes of engine/passes.py, each by the checkbox that enables it."""
+    bl_label = "Passes"
+    bl_context = "view_layer"
+
+    def draw(self, context):
+        from ..engine.integrators import REGISTRY
+        from ..engine.passes import COMBINED, PASSES
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        view_layer = context.view_layer
+        integrator = REGISTRY.get(str(context.scene.ember.integrator).lower())
+        own = getattr(integrator, "own_passes", ())
+        col = layout.column(heading="Include")
+        drawn = set()
+        for p in PASSES:
+            if p is COMBINED or p.prop in drawn or (p.group == "integrator" and p.name not in own):
+                continue
+            drawn.add(p.prop)
+            if p.prop.startswith("ember."):
+                col.prop(view_layer.ember, p.prop[len("ember."):])
+            else:
+                col.prop(view_layer, p.prop, text=p.name)
+
+
 classes = (EMBER_RENDER_PT_sampling, EMBER_RENDER_PT_sampling_advanced, EMBER_RENDER_PT_photons,
-           EMBER_RENDER_PT_icache, EMBER_RENDER_PT_light_paths, EMBER_RENDER_PT_performance)
+           EMBER_RENDER_PT_icache, EMBER_RENDER_PT_light_paths, EMBER_RENDER_PT_performance, EMBER_RENDER_PT_film,
+           EMBER_VIEWLAYER_PT_passes)
 
 # The COMPAT_ENGINES sets we added ENGINE to (by identity: mixins share one set object).
 _added_to: dict = {}

@@ -61,6 +61,11 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
         description="Samples per pixel (full passes over the image)",
         default=64, min=1, soft_max=4096,
     )
+    preview_samples: IntProperty(
+        name="Viewport Samples",
+        description="Samples per pixel the viewport's Rendered shading refines to",
+        default=64, min=1, soft_max=4096,
+    )
     max_depth: IntProperty(
         name="Max Bounces",
         description="Longest light path, in surface interactions",
@@ -197,7 +202,21 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
     )
 
 
-classes = (EmberSceneSettings,)
+class EmberViewLayerSettings(bpy.types.PropertyGroup):
+    """Passes Blender has no view-layer checkbox for (engine/passes.py: "ember.*")."""
+
+    denoising_store_passes: BoolProperty(
+        name="Denoising Data", default=False,
+        description="Denoising Albedo and Denoising Normal passes, for the compositor's Denoise node")
+    pass_sample_count: BoolProperty(name="Sample Count", default=False,
+                                    description="Debug pass: samples taken in each pixel")
+    pass_variance: BoolProperty(name="Variance", default=False,
+                                description="Debug pass: estimated variance of each pixel's mean")
+    pass_caustics: BoolProperty(name="Caustics", default=False,
+                                description="The caustic photon map's estimate (photon-map integrators)")
+
+
+classes = (EmberSceneSettings, EmberViewLayerSettings)
 
 
 def register():
@@ -205,11 +224,15 @@ def register():
         bpy.utils.register_class(cls)
     bpy.types.Scene.ember = PointerProperty(type=EmberSceneSettings, name="Ember",
                                             description="Ember render settings")
+    bpy.types.ViewLayer.ember = PointerProperty(type=EmberViewLayerSettings, name="Ember",
+                                                description="Ember view layer settings")
 
 
 def unregister():
     if hasattr(bpy.types.Scene, "ember"):
         del bpy.types.Scene.ember
+    if hasattr(bpy.types.ViewLayer, "ember"):
+        del bpy.types.ViewLayer.ember
     for cls in reversed(classes):
         if getattr(cls, "is_registered", False):
             bpy.utils.unregister_class(cls)

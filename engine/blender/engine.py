@@ -1,9 +1,9 @@
 """The RenderEngine Blender talks to. Thin: every callback is one line into a driver module
-(final.py for F12 / bpy.ops.render.render). No viewport renderer yet: with
+(final.py for F12 / bpy.ops.render.render, viewport.py for Rendered shading). With
 bl_use_eevee_viewport, Material Preview uses EEVEE."""
 import bpy
 
-from . import final
+from . import final, passes, viewport
 
 
 class EmberRenderEngine(bpy.types.RenderEngine):
@@ -17,6 +17,21 @@ class EmberRenderEngine(bpy.types.RenderEngine):
     # Blender 4.4+: the constructor must take and forward *args/**kwargs.
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
+        self.viewport = viewport.ViewportDriver()
+
+    def __del__(self):
+        driver = getattr(self, "viewport", None)
+        if driver is not None:
+            driver.free()
 
     def render(self, depsgraph):
         final.render(self, depsgraph)
+
+    def view_update(self, context, depsgraph):
+        self.viewport.view_update(self, context, depsgraph)
+
+    def view_draw(self, context, depsgraph):
+        self.viewport.view_draw(self, context, depsgraph)
+
+    def update_render_passes(self, scene=None, renderlayer=None):
+        passes.register_passes(self, scene, renderlayer)

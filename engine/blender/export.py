@@ -19,6 +19,7 @@ from .export_material import MaterialTable
 from .export_mesh import MeshCollector
 from .export_settings import export_settings
 from .export_world import export_world
+from .passes import enabled_passes
 
 CHECK_EVERY = 1000  # instances between test_break() polls
 REPORT_EVERY = 5000  # instances between progress reports
@@ -64,6 +65,7 @@ def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
     # Settings from the original scene: add-on PropertyGroups (scene.ember, scene.cycles)
     # do not tag the depsgraph when edited, so the evaluated copy can be stale.
     settings = export_settings(depsgraph.scene, overrides, warn)
+    settings = _look_dev(settings, depsgraph, overrides or {}, warn)
     camera = export_camera(depsgraph, scene, settings, warn)
     check()
 
@@ -114,6 +116,23 @@ def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
     out = Scene(mesh=mesh, materials=materials.materials(), lights=lights, world=world,
                 camera=camera, settings=settings)
     return recentred(out, origin, mesh_done=True), warn.finish()
+
+
+def _look_dev(settings, depsgraph, overrides: dict, warn):
+    """Render passes from the view layer's checkboxes and film transparency from the scene
+    (overrides win)."""
+    kw = {}
+    if overrides.get("passes") is None:
+        names = enabled_passes(depsgraph.view_layer, settings.integrator)
+        left_out = [n for n in enabled_passes(depsgraph.view_layer, settings.integrator, written_only=False)
+                    if n not in names]
+        if left_out:
+            warn(f"The '{settings.integrator}' integrator does not write the passes {_names(left_out, 3)}; "
+                 "the path tracer does.")
+        kw["passes"] = names
+    if overrides.get("film_transparent") is None:
+        kw["film_transparent"] = bool(getattr(depsgraph.scene.render, "film_transparent", False))
+    return settings.replace(**kw)
 
 
 def _names(names, limit=5) -> str:

@@ -31,6 +31,9 @@ from .export import export_scene
 from .result import ResultWriter, blender_border
 
 REFRESH_SECONDS = 2.0  # film -> render result at least this often between passes
+# Preview renders (bl_use_preview): few samples, traced in this process (a worker pool's
+# start-up would cost more than the thumbnail), no passes (bench/preview.py measures them).
+PREVIEW_OVERRIDES = dict(samples=16, threads=1, passes=(), max_depth=8)
 
 
 class RenderListener:
@@ -172,6 +175,24 @@ class _Loop:
         _notify("on_progress", self.writer.layer, progress)
 
 
+def _version() -> str:
+    """The add-on's version, from its manifest."""
+    import pathlib
+    import tomllib
+    try:
+        return tomllib.loads((pathlib.Path(__file__).resolve().parents[2] / "blender_manifest.toml").read_text())["version"]
+    except (OSError, KeyError, ValueError):
+        return "unknown"
+
+
+def metadata(settings, stats) -> dict:
+    """The render's facts for Blender's image header (stamp fields, so its multilayer EXR
+    carries them), under the keys render.py's EXR uses."""
+    return {"ember/engine": "Ember", "ember/version": _version(), "ember/integrator": settings.integrator,
+            "ember/samples": str(stats.samples), "ember/seed": str(settings.seed),
+            "ember/renderSeconds": f"{stats.elapsed:.3f}"}
+
+
 def _layer_prefix(depsgraph, layer: str) -> str:
     try:
         n = sum(1 for vl in depsgraph.scene.view_layers if vl.use)
@@ -200,6 +221,8 @@ def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
     # from scene.render; passing them keeps film and result in step whatever happens there).
     frame = dict(width=writer.width, height=writer.height, border=writer.border,
                  persistent=_persistent(engine, depsgraph.scene) or None)
+    if getattr(engine, "is_preview", False):  # material/light/world thumbnails: quick, in-process
+        frame.update(PREVIEW_OVERRIDES)
     scene, warnings = export_scene(depsgraph, overrides=frame, test_break=export_break,
                                    progress=_ExportProgress(engine, layer))
     print(f"Ember: {layer}: exported in {time.perf_counter() - t0:.2f} s", flush=True)
@@ -218,9 +241,16 @@ def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
     loop = _Loop(engine, writer, _layer_prefix(depsgraph, layer), settings.time_limit)
     stats = session.run(on_update=loop.on_update, should_stop=loop.should_stop)
     image = None
+    film = loop.film if loop.film is not None else session.film
     if loop.film is not None:
-        image = loop.film.image()
+        image = film.image()
         writer.write(image)
+    missing = writer.write_passes(film)
+    if missing:
+        _report_once(engine, 'WARNING', f"Render passes missing from the result: {', '.join(missing)}")
+    writer.stamp(metadata(settings, stats))
+    _notify("on_layer_passes", layer, {name: film.pass_image(name) for name in film.passes_wanted},
+            metadata(settings, stats))
     cancelled = bool(getattr(stats, "cancelled", False))
     if not cancelled:
         engine.update_progress(1.0)

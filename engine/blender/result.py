@@ -39,7 +39,7 @@ def rect_from_image(image: np.ndarray, border: tuple) -> np.ndarray:
     """Full-frame top-down (H, W, 4) image -> flat float32 array for `rect.foreach_set`:
     the border crop, rows bottom-up."""
     x0, y0, x1, y1 = border
-    crop = image[y0:y1, x0:x1, :4]
+    crop = image[y0:y1, x0:x1, :4] if image.ndim == 3 else image[y0:y1, x0:x1]
     return np.ascontiguousarray(crop[::-1], dtype=np.float32).reshape(-1)
 
 
@@ -78,6 +78,7 @@ class ResultWriter:
                                f"expected {self.size[0]}x{self.size[1]} (border {self.border})")
         self._combined = self.result.layers[0].passes["Combined"]
         self.writes = 0
+        self.fields = {}  # stamp(): header metadata
 
     def write(self, image: np.ndarray) -> None:
         """image: (height, width, 4) full frame, row 0 = top."""
@@ -88,6 +89,26 @@ class ResultWriter:
         self.engine.update_result(self.result)
         self.writes += 1
 
+    def write_passes(self, film) -> list:
+        """Every pass the film keeps for the view layer (engine/passes.py) into the result's
+        passes of the same name (Blender created them from update_render_passes). Returns the
+        names it could not find in the result."""
+        missing = []
+        layer = self.result.layers[0]
+        for name in film.passes_wanted:
+            target = layer.passes.get(name)
+            if target is None:
+                missing.append(name)
+                continue
+            target.rect.foreach_set(rect_from_image(film.pass_image(name), self.border))
+        self.engine.update_result(self.result)
+        return missing
+
+    def stamp(self, fields: dict) -> None:
+        """Metadata for the image header (multilayer EXR, stamp): field -> text. Written at
+        end() on the engine's whole result (as Cycles does: a layer result's stamp is not kept)."""
+        self.fields = dict(fields)
+
     def end(self) -> None:
         if self.result is None:
             return
@@ -97,3 +118,6 @@ class ResultWriter:
         finally:
             self.engine.end_result(self.result)
             self.result = None
+        whole = self.engine.get_result() if self.fields and hasattr(self.engine, "get_result") else None
+        for key, value in self.fields.items() if whole is not None else ():
+            whole.stamp_data_add_field(key, str(value))

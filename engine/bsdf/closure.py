@@ -120,6 +120,7 @@ class Closure:
             self.weight[rows] *= layering.base_weight(f0, self.roughness[top], mu[rows], self.ior[top])[:, None]
 
         estimate = self._albedo_estimate(mu)
+        self.pair_estimate = estimate  # (P,3), for the colour passes (by_class)
         share = np.maximum(_mean3(estimate), _MIN_ESTIMATE * _mean3(self.weight))
         share = np.where(max3(self.weight) > 0, share, 0.0)
         total = share if self.single else np.bincount(point, share, minlength=n)[point]
@@ -288,6 +289,41 @@ class Closure:
         """f (K,3) and solid-angle pdf (K,) at the points `rows` (K,) for directions wi (K,3)."""
         return self._mixture(rows, wi)
 
+    # --- render passes: the closure split by lobe class (diffuse, glossy, transmission) -------
+    def eval_by_class(self, wi: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """f (K,3 classes,3) of the points `rows` for directions wi, split by lobe class (they
+        sum to eval's f). Glass reflection is glossy, its refraction transmission (Cycles)."""
+        k = len(rows)
+        at = gatherer(rows, self.n)
+        wi_local = _to_local(wi, at(self.t), at(self.b), at(self.ns))
+        agree = (dot(wi, at(self.ng)) > 0) == (wi_local[:, 2] > 0)
+        pairs, owner = self._pairs_of(rows)
+        f_pair, _ = self._eval_pairs(pairs, take(self.wo_local, rows[owner]), take(wi_local, owner))
+        refracted = wi_local[owner, 2] < 0
+        cls = _lobe_class(self.pair_kind[pairs], refracted)
+        out = np.zeros((k * 3, 3))
+        for c in range(3):
+            out[:, c] = np.bincount(owner * 3 + cls, f_pair[:, c], minlength=k * 3)
+        return out.reshape(k, 3, 3) * agree[:, None, None]
+
+    def albedo_by_class(self) -> np.ndarray:
+        """(N,3 classes,3) reflectance estimate at wo per lobe class (the colour passes)."""
+        values, kind, owner = self.pair_estimate.copy(), self.pair_kind, self.pair_point
+        cls = _lobe_class(kind, np.zeros(len(kind), bool))
+        rows = np.flatnonzero(kind == LOBE_DIELECTRIC)
+        if len(rows):  # F tint reflects (glossy), (1 - F) colour refracts (transmission)
+            F = fresnel.dielectric(np.abs(self.wo_local[owner[rows], 2]), self.ior[rows])[:, None]
+            reflected = self.weight[rows] * F * self.tint[rows]
+            refracted = values[rows] - reflected
+            values[rows] = reflected
+            values = np.concatenate([values, refracted])
+            owner = np.concatenate([owner, owner[rows]])
+            cls = np.concatenate([cls, np.full(len(rows), 2)])
+        out = np.zeros((self.n * 3, 3))
+        for c in range(3):
+            out[:, c] = np.bincount(owner * 3 + cls, values[:, c], minlength=self.n * 3)
+        return out.reshape(self.n, 3, 3)
+
     def cos_i(self, wi: np.ndarray) -> np.ndarray:
         return np.abs(dot(wi, self.ns))
 
@@ -425,6 +461,13 @@ class Closure:
         return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=delta, valid=valid, refraction_eta2=eta2)
 
 
+def _lobe_class(kind: np.ndarray, refracted: np.ndarray) -> np.ndarray:
+    """Render-pass class of lobes: 0 diffuse, 1 glossy (Phong, microfacet, glass reflection),
+    2 transmission (glass refraction, transparency)."""
+    cls = np.where(kind == LOBE_DIFFUSE, 0, 1)
+    return np.where((kind == LOBE_TRANSPARENT) | ((kind == LOBE_DIELECTRIC) & refracted), 2, cls)
+
+
 def plain_lambert_albedo(m) -> np.ndarray:
     """(M,3) albedo of materials that are one untextured diffuse lobe (no normal map, no
     layering) or have no lobe at all (black, e.g. pure emitters), NaN for every other material."""
@@ -458,6 +501,16 @@ class LambertClosure:
         at = gatherer(rows, len(self.ns))
         cos_i = np.where(dot(wi, at(self.ng)) > 0, dot(wi, at(self.ns)), 0.0)
         return diffuse.eval(at(self.albedo), cos_i), diffuse.pdf(cos_i)
+
+    def eval_by_class(self, wi: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        out = np.zeros((len(rows), 3, 3))
+        out[:, 0] = self.eval(wi, rows)[0]
+        return out
+
+    def albedo_by_class(self) -> np.ndarray:
+        out = np.zeros((len(self.ns), 3, 3))
+        out[:, 0] = self.albedo
+        return out
 
     def sample(self, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
         local = diffuse.sample(u)

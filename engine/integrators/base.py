@@ -60,6 +60,11 @@ class Integrator:
     # Whether a render may take samples [K, K + N) of the sequence (Settings.sample_offset):
     # every sample independent of the others given the published data.
     sample_offset: ClassVar[bool] = True
+    # Render passes of the "integrator" group (engine/passes.py) this integrator writes into
+    # its film items' "passes" (Caustics, the irradiance cache's records, ...).
+    own_passes: ClassVar[tuple] = ()
+    # Whether it splits its radiance into the light passes (Diffuse Direct, ..., Emission).
+    light_passes: ClassVar[bool] = False
 
     def __init__(self, scene: Scene):
         from ..tracer import BatchLayout

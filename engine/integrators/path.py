@@ -28,7 +28,9 @@ from ..errors import Cancelled
 from ..lights.light_set import LightSet
 from ..rng import Sampler
 from ..scene import Scene
+from .. import passes as passes_mod
 from .base import Integrator, Stage
+from .light_passes import LightTally
 from .surface import flat_normals, shading_frame, towards
 
 # Random-number groups (rng.Sampler): 0 the pixel filter, then per bounce _GROUPS groups:
@@ -64,20 +66,23 @@ class PathTracer:
         self.bsdf_hits = strategy in ("mis", "bsdf")
         self.mis = strategy == "mis"
 
-    def render(self, sampler, px: np.ndarray, py: np.ndarray, stop=None) -> np.ndarray:
-        """Radiance estimates (N,3), one path per pixel (px, py). Raises Cancelled if stop is set."""
+    def render(self, sampler, px: np.ndarray, py: np.ndarray, stop=None, tally=None) -> np.ndarray:
+        """Radiance estimates (N,3), one path per pixel (px, py). Raises Cancelled if stop is set.
+        tally: a LightTally that files the radiance into light passes, or None."""
         s = self.scene
         o64, d, tmax = camera_mod.generate_rays(s.camera, s.settings, px, py, sampler.get(0, None, 2))
-        return self.trace(sampler, o64, o64.astype(np.float32), d, tmax, np.full(len(px), -1, np.int64), stop)
+        return self.trace(sampler, o64, o64.astype(np.float32), d, tmax, np.full(len(px), -1, np.int64), stop,
+                          tally=tally)
 
     def trace(self, sampler, o64, o32, d, tmax, skip, stop=None, first_emission=True,
-              max_depth=None, t_first=None) -> np.ndarray:
+              max_depth=None, t_first=None, tally=None) -> np.ndarray:
         """Radiance (N,3) arriving along rays from o64 (float64 points; o32 their offset float32
         origins, skip the primitive each leaves or -1) in directions d; tmax (N,) or None.
         Random groups from 1 (group 0 is the caller's). first_emission False leaves out the
         emission the rays themselves find (a gather ray whose direct light is sampled apart);
         max_depth: bounces after the first hit (default: the scene's); t_first (N,), if given,
-        receives the first hit's distance (inf where the ray escaped)."""
+        receives the first hit's distance (inf where the ray escaped); tally: light passes
+        (render, camera rays only)."""
         n = len(d)
         L = np.zeros((3, n))  # channel-major: see _accumulate
         idx = np.arange(n)  # which pixel sample each live path belongs to
@@ -99,12 +104,18 @@ class PathTracer:
             emission = first_emission or depth > 0
             # Light objects the ray passes on its way (they do not stop it).
             if len(self.lights.hittable) and emission:
-                _accumulate(L, idx, beta * self.lights.emission_along(o64, d, hit.t, pdf_prev, ~no_mis, camera_ray))
+                c = beta * self.lights.emission_along(o64, d, hit.t, pdf_prev, ~no_mis, camera_ray)
+                _accumulate(L, idx, c)
+                if tally:
+                    tally.emitted(depth, idx, c)
             # Escaped rays see the suns and the world.
             missed = hit.prim < 0
             if missed.any() and self.lights.sees_escaped and emission:
                 r = np.flatnonzero(missed)
-                _accumulate(L, idx[r], take(beta, r) * self.lights.escaped(take(d, r), pdf_prev[r], ~no_mis[r], camera_ray[r]))
+                c = take(beta, r) * self.lights.escaped(take(d, r), pdf_prev[r], ~no_mis[r], camera_ray[r])
+                _accumulate(L, idx[r], c)
+                if tally:
+                    tally.emitted(depth, idx[r], c, escaped=True)
             keep = np.flatnonzero(~missed)
             if len(keep) == 0:
                 break
@@ -120,7 +131,10 @@ class PathTracer:
                 cos_l = np.abs(dot(take(d, r), take(ng, r)))
                 pdf_light = self.lights.pdf_triangle_hit(prim[r], take(o_prev, keep[r]), hit_t[r], cos_l)
                 w = np.where(no_mis[r], 1.0, pdf_prev[r] / np.maximum(pdf_prev[r] + pdf_light, 1e-300))
-                _accumulate(L, idx[r], take(beta, r) * scale(Le, w))
+                c = take(beta, r) * scale(Le, w)
+                _accumulate(L, idx[r], c)
+                if tally:
+                    tally.emitted(depth, idx[r], c)
             if depth == max_depth:
                 break
             # Shading frame, flipped to the side the ray came from (two-sided, like Cycles).
@@ -128,6 +142,8 @@ class PathTracer:
             ng_f, ns = shading_frame(mesh, self.flat_normal, prim, bary, ng, wo)
             bsdf = make_closure(self.scene, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary)
             ns = bsdf.ns  # may be perturbed (normal maps)
+            if tally and depth == 0:
+                tally.first_hit(idx, bsdf)
             albedo = max3(bsdf.reflectance)
             q = np.minimum(1.0, albedo) if depth >= self.rr_depth else np.ones(len(idx))
             m = len(idx)
@@ -150,9 +166,14 @@ class PathTracer:
                     blocked = self.accel.occluded(o_shadow, take(ls.target, test), prim[rows], ls.target_prim[test])
                     lit = np.flatnonzero(~blocked)
                     _accumulate(L, idx[rows[lit]], take(contrib, test[lit]))
+                    if tally:
+                        f_cls = bsdf.eval_by_class(take(ls.wi, test[lit]), rows[lit]) if depth == 0 else None
+                        tally.light_sample(depth, idx[rows[lit]], take(contrib, test[lit]), f_cls)
             # BSDF sampling continues the path; Russian roulette with survival q.
             u_bsdf = sampler.get(base + _BSDF, idx, 4)
             bs = bsdf.sample(u_bsdf[:, :2], u_bsdf[:, 2])
+            if tally and depth == 0:
+                tally.first_bounce(idx, bsdf, bs)
             survive = bs.valid & (u_bsdf[:, 3] < q)
             beta = beta * scale(bs.weight, np.divide(1.0, q, out=np.zeros(m), where=survive))
             survive &= max3(beta) > 0
@@ -175,6 +196,7 @@ class PathIntegrator(Integrator):
     name = "path"
     label = "Path Tracing"
     description = "Unidirectional path tracing with next-event estimation and MIS (unbiased)"
+    light_passes = True
 
     def stages(self, round: int):
         return [self.samples_stage()] if round == 0 else []
@@ -182,10 +204,16 @@ class PathIntegrator(Integrator):
     def build(self, ctx) -> None:
         super().build(ctx)
         self.tracer = PathTracer(ctx.scene, ctx.accel, ctx.lights)
+        # The light passes this render keeps (the Color passes Direct/Indirect need included).
+        self.tallied = tuple(n for n in passes_mod.needed(ctx.scene.settings.passes) if n in passes_mod.LIGHT)
 
     def run(self, stage: Stage, item: int, stop=None) -> np.ndarray:
         layout, s = self.layout, self.scene.settings
         k = layout.paths(stage, item)
         j = k % layout.n_pixels
         sampler = Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
-        return self.tracer.render(sampler, layout.px[j], layout.py[j], stop)
+        if not self.tallied:
+            return self.tracer.render(sampler, layout.px[j], layout.py[j], stop)
+        tally = LightTally(len(k), self.tallied)
+        L = self.tracer.render(sampler, layout.px[j], layout.py[j], stop, tally)
+        return {"L": L, "passes": tally.passes()}

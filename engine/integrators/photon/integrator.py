@@ -61,6 +61,7 @@ class PhotonIntegrator(Integrator):
     label = "Photon Mapping"
     description = ("Two-pass photon mapping: caustic map, final gathering on the global map "
                    "(biased, consistent as photons grow)")
+    own_passes = ("Caustics",)
 
     def __init__(self, scene):
         super().__init__(scene)
@@ -191,7 +192,10 @@ class PhotonIntegrator(Integrator):
         k = layout.paths(stage, item)
         j = k % layout.n_pixels
         sampler = rng.Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
-        return self._render(sampler, layout.pixel[j], k // layout.n_pixels, layout.px[j], layout.py[j], stop)
+        L = self._render(sampler, layout.pixel[j], k // layout.n_pixels, layout.px[j], layout.py[j], stop)
+        if self._caustics is None:
+            return L
+        return {"L": L, "passes": {"Caustics": np.ascontiguousarray(self._caustics.T)}}
 
     # --- the camera pass --------------------------------------------------------------------
     def _render(self, sampler, pixel, sample, px, py, stop):
@@ -199,6 +203,8 @@ class PhotonIntegrator(Integrator):
         o64, d, tmax = camera_mod.generate_rays(scene.camera, s, px, py, sampler.get(0, None, 2))
         n = len(px)
         L = np.zeros((3, n))
+        # The Caustics render pass: the caustic map's term alone (same layout as L).
+        self._caustics = np.zeros((3, n)) if "Caustics" in s.passes else None
         idx = np.arange(n)
         o32 = o64.astype(np.float32)
         beta = np.ones((n, 3))
@@ -283,6 +289,8 @@ class PhotonIntegrator(Integrator):
             Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_caustic, kernel=s.photon_kernel, min_count=MIN_COUNT,
                                               accept=self.visible(at(p), at(ng_f), self.caustic_map))
             _accumulate(L, rows, bx * Lc)
+            if self._caustics is not None:
+                _accumulate(self._caustics, rows, bx * Lc)
         if view == "caustic":
             return
         if not indirect:

@@ -35,6 +35,7 @@ PPM_RADIUS = 0.01  # x scene radius: the first pass's radius when the setting is
 
 class ProgressivePhotonIntegrator(PhotonIntegrator):
     name = "ppm"
+    own_passes = ()  # its photon term is one film overlay, caustics not apart
     label = "Progressive Photon Mapping"
     description = "Stochastic progressive photon mapping: photon radii shrink every pass (consistent)"
 

@@ -1,0 +1,152 @@
+"""Interactive rendering for a viewport: progressive, restartable, on a thread of its own.
+
+    view = ViewportSession(pixel_size=2)
+    view.update(scene)                  # from Blender's main thread, as often as edits come
+    version, buffer = view.latest()     # the drawing side: (H*W*4,) float32, rows bottom-up
+    view.close()
+
+The thread renders the newest scene it was given: first one sample at 1/`pixel_size` of the
+resolution (so an edit shows within a fraction of a second), then full resolution, one pass
+after another up to the scene's sample count. An update stops the running render at its next
+check (RenderSession polls `should_stop` at least every UPDATE_INTERVAL; the path tracer checks
+its stop event every bounce) and starts over. Renders ask for persistent data
+(Settings.persistent): the Embree scene and light tables are rebuilt only when the scene parts
+they depend on changed (engine/tracer.py compares part digests).
+
+Tracing happens in this process, on one core: a restart cancels the render, and worker
+processes are not kept across a cancel (engine/session.py), so each restart would pay their
+start-up (~1 s). Nothing here touches Blender.
+"""
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+from .scene import Scene
+from .session import RenderSession
+
+HALF_MAX = 65504.0  # the draw texture is half float: larger values would become inf
+
+
+def draw_buffer(image: np.ndarray) -> np.ndarray:
+    """(H,W,4) top-down film image -> flat float32 RGBA, rows bottom-up (GPU texture order),
+    non-finite values 0 and everything clamped to [-HALF_MAX, HALF_MAX)."""
+    flipped = np.ascontiguousarray(image[::-1], dtype=np.float32)
+    flipped = np.nan_to_num(flipped, nan=0.0, posinf=HALF_MAX, neginf=-HALF_MAX)
+    top = np.nextafter(np.float32(HALF_MAX), np.float32(0))
+    return np.clip(flipped, -top, top).reshape(-1)
+
+
+def upscale(image: np.ndarray, factor: int, height: int, width: int) -> np.ndarray:
+    """A coarse image (h,w,C) blown up by pixel repetition and cropped to (height, width)."""
+    return np.repeat(np.repeat(image, factor, axis=0), factor, axis=1)[:height, :width]
+
+
+def coarse_scene(scene: Scene, factor: int) -> Scene:
+    """The scene at 1/factor of its resolution, one sample (the same camera window)."""
+    s = scene.settings
+    w, h = -(-s.width // factor), -(-s.height // factor)
+    return scene.replace(settings=s.replace(width=w, height=h, border=(0, 0, w, h), samples=1, time_limit=0.0,
+                                            noise_target=0.0))
+
+
+class ViewportSession:
+    def __init__(self, pixel_size: int = 2, on_image=None):
+        """pixel_size: the first image's pixel size (Blender's preview_pixel_size, at least 2
+        to pay off); on_image(): called on the render thread after each new image."""
+        self.pixel_size = max(2, int(pixel_size))
+        self.on_image = on_image
+        self._cond = threading.Condition()
+        self._job = None  # the scene waiting to start
+        self._restart = threading.Event()
+        self._closed = False
+        self._buffer = None  # (version, flat float32 RGBA, width, height, samples)
+        self._version = 0
+        self.stats = []  # per update: dict(builds, first_image, samples) (bench/viewport.py, tests)
+        self.error = None  # the last render's exception message, if it failed
+        self._thread = threading.Thread(target=self._loop, name="ember-viewport", daemon=True)
+        self._thread.start()
+
+    # --- main thread ------------------------------------------------------------------------
+    def update(self, scene: Scene) -> None:
+        """Render `scene` from now on (recentred like the last one: the exporter's origin)."""
+        with self._cond:
+            self._job = scene
+            self._restart.set()
+            self._cond.notify()
+
+    def latest(self):
+        """(version, flat float32 RGBA rows bottom-up, width, height, samples) of the newest
+        image, or None before the first."""
+        return self._buffer
+
+    def busy(self) -> bool:
+        """Whether a render is running or waiting (the viewport keeps redrawing meanwhile)."""
+        with self._cond:
+            return self._job is not None or self._running
+
+    def close(self, timeout: float = 10.0) -> None:
+        with self._cond:
+            self._closed = True
+            self._restart.set()
+            self._cond.notify()
+        self._thread.join(timeout)
+
+    # --- render thread ----------------------------------------------------------------------
+    _running = False
+
+    def _stop(self) -> bool:
+        return self._restart.is_set()
+
+    def _loop(self) -> None:
+        while True:
+            with self._cond:
+                while self._job is None and not self._closed:
+                    self._cond.wait()
+                if self._closed:
+                    return
+                scene, self._job = self._job, None
+                self._restart.clear()
+                self._running = True
+            try:
+                self._render(scene)
+            except Exception as e:  # shown by the engine; the thread must survive bad scenes
+                self.error = f"{type(e).__name__}: {e}"
+            finally:
+                with self._cond:
+                    self._running = False
+
+    def _render(self, scene: Scene) -> None:
+        t0 = time.perf_counter()
+        record = dict(builds={}, first_image=None, samples=[])
+        self.stats.append(record)
+        self.error = None
+        s = scene.settings
+        for factor in (self.pixel_size, 1):
+            if self._stop():
+                return
+            level = coarse_scene(scene, factor) if factor > 1 else scene
+            level = level.replace(settings=level.settings.replace(persistent=True, threads=1))
+            session = RenderSession(level)
+
+            def publish(progress, factor=factor):
+                if not progress.pass_completed:
+                    return
+                image = progress.film.image()
+                if factor > 1:
+                    image = upscale(image, factor, s.height, s.width)
+                self._version += 1
+                self._buffer = (self._version, draw_buffer(image), s.width, s.height, progress.samples_done)
+                elapsed = time.perf_counter() - t0
+                if record["first_image"] is None:
+                    record["first_image"] = elapsed
+                if factor == 1:
+                    record["samples"].append((progress.samples_done, elapsed))
+                if self.on_image is not None:
+                    self.on_image()
+
+            stats = session.run(on_update=publish, should_stop=self._stop)
+            for key, n in stats.builds.items():
+                record["builds"][key] = record["builds"].get(key, 0) + n
