@@ -75,7 +75,7 @@ def measure(label, sc, width, height, samples):
         driver.view_update(engine, context, depsgraph)
         out["export_s"] = time.perf_counter() - t0
         first, full, version = _run_until(driver, engine, context, depsgraph, samples, t0)
-        out.update(first_image_s=first, samples_s=full, embree_build_s=driver.session.stats[-1]["build"],
+        out.update(first_image_s=first, samples_s=full, builds=driver.session.stats[-1]["builds"],
                    triangles=int(driver.export.scene.mesh.n_triangles))
         # Edits through the depsgraph, as Blender delivers them to view_update.
         def edit(fn):
@@ -98,6 +98,7 @@ def measure(label, sc, width, height, samples):
             out[f"update_{name}_s"] = driver.timings[-1][1]
             first, full, version = _run_until(driver, engine, context, depsgraph, samples, t, version)
             out[f"{name}_first_image_s"], out[f"{name}_samples_s"] = first, full
+            out[f"{name}_builds"] = driver.session.stats[-1]["builds"]
         t = time.perf_counter()
         context.region_data.view_matrix = context.region_data.view_matrix.copy()
         context.region_data.view_matrix[0][3] += 0.05
