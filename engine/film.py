@@ -106,8 +106,8 @@ class Film:
         if name == passes_mod.COMBINED.name:
             return self.image()
         shape = (self.height, self.width, -1)
-        if name == "Debug Sample Count":
-            return self.count.reshape(shape).astype(np.float32)
+        if name == "Debug Sample Count":  # as Cycles: the share of the samples taken (1 = all)
+            return (self.count / max(int(self.count.max()), 1)).reshape(shape).astype(np.float32)
         if name == "Debug Variance":
             v = self.variance_of_mean()
             v = np.where(np.isfinite(v), v, 0.0).mean(axis=2, keepdims=True)

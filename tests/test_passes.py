@@ -93,7 +93,9 @@ def test_hit_passes_on_a_facing_plane_are_exact():
                                rtol=1e-6)
     # The pixel at the view's centre: pixel count and variance debug passes.
     film_debug = _render(scene.replace(settings=scene.settings.replace(passes=("Debug Sample Count",))))
-    np.testing.assert_array_equal(film_debug.pass_image("Debug Sample Count"), 3)
+    np.testing.assert_array_equal(film_debug.pass_image("Debug Sample Count"), 1.0)  # Cycles' scale: 3 of 3
+    film_debug.count[0] = 1  # a pixel with one sample of three
+    assert film_debug.pass_image("Debug Sample Count")[0, 0, 0] == np.float32(1 / 3)
 
 
 def test_depth_where_the_camera_sees_only_the_world_is_cycles_1e10():
