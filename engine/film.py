@@ -112,11 +112,9 @@ class Film:
             v = self.variance_of_mean()
             v = np.where(np.isfinite(v), v, 0.0).mean(axis=2, keepdims=True)
             return v.astype(np.float32)
-        if name == "Depth":  # written by sample 0 only (Cycles): a value, not a mean
-            with self._lock:
-                z = self.pass_sum[name].reshape(shape)
-            return np.where(z > 0, z, passes_mod.DEPTH_MISS).astype(np.float32)
         m = self._mean_of(name)
+        if name == "Depth":  # Cycles' value where no sample hit anything
+            return np.where(m > 0, m, passes_mod.DEPTH_MISS).astype(np.float32)
         part = name.rsplit(" ", 1)[-1]
         if part in ("Direct", "Indirect"):  # stored divided by the colour, as Cycles
             color = self._mean_of(name.rsplit(" ", 1)[0] + " Color")

@@ -4,12 +4,13 @@ so compositor setups made for Cycles work unchanged on Ember images.
 Every pass but Combined is optional and costs nothing unless requested (Settings.passes):
 
 - "hit" passes describe the camera ray's first hit (engine/integrators/first_hit.py, the
-  same camera sample every integrator uses): Depth (distance along the view axis, from
-  sample 0, 1e10 where the ray escaped, as Cycles), Position (world space), Normal (the
-  shading normal facing the camera, world space), Denoising Normal (the same in camera
+  same camera sample every integrator uses): Depth (distance along the view axis, 1e10 where
+  every sample escaped), Position (world space), Normal (the shading normal facing the
+  camera, world space), Denoising Normal (the same in camera
   space, as Cycles gives it to the denoiser), Denoising Albedo (the closure's reflectance at
   the first hit; Cycles looks through mirror and glass to the next rough hit, Ember does
-  not). Averaged over samples, as Cycles averages them.
+  not). All averaged over the samples, as Cycles averages them (measured on its passes:
+  Depth and Position match Cycles' as means, not as the first sample's hit).
 - "light" passes split Combined by what the camera sees (Emission, Environment) and, for the
   rest, by the kind of lobe at the first bounce (diffuse, glossy, transmission) and whether
   the light arrived after one bounce (Direct) or more (Indirect); the Color passes are the

@@ -91,9 +91,9 @@ class Tracer:
     def _first_hit_passes(self, stage: Stage, item: int) -> dict:
         s, layout = self.scene.settings, self.integrator.layout
         k = layout.paths(stage, item)
-        j, sample = k % layout.n_pixels, k // layout.n_pixels
-        sampler = Sampler(s.seed, layout.pixel[j], sample, s.pattern)
-        return self.first_hit.passes(sampler, layout.px[j], layout.py[j], sample)
+        j = k % layout.n_pixels
+        sampler = Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
+        return self.first_hit.passes(sampler, layout.px[j], layout.py[j])
 
 
 def with_passes(result, passes: dict):

@@ -234,3 +234,25 @@ def test_film_and_passes_panels_are_registered():
         cls = getattr(bpy.types, name)
         assert cls.COMPAT_ENGINES == {"EMBER"} and cls in panels.classes
     assert bpy.types.EMBER_VIEWLAYER_PT_passes.bl_context == "view_layer"
+
+
+def test_depth_position_normal_match_cycles():
+    """Cornell box 32x32, 16 spp: Depth, Position and Normal, means over the pixel's samples
+    as Cycles writes them, agree with Cycles' to a median of 0.014 (Depth, Position, in
+    metres; 1e-7 for Normal); edge pixels differ by the renderers' own filter samples
+    (measured medians 0.0135, 0.0137; as the first sample's hit instead: 0.085, 0.17)."""
+    images = {}
+    for engine in ("EMBER", "CYCLES"):
+        sc = _cornell(engine, size=32, samples=16)
+        sc.cycles.samples = 16
+        vl = sc.view_layers[0]
+        vl.use_pass_z = vl.use_pass_normal = vl.use_pass_position = True
+        bpy.ops.render.render()
+        s = sc.render.image_settings
+        s.media_type, s.file_format, s.color_depth = 'MULTI_LAYER_IMAGE', 'OPEN_EXR_MULTILAYER', '32'
+        path = pathlib.Path(bpy.app.tempdir or "/tmp") / f"hit_{engine}.exr"
+        bpy.data.images["Render Result"].save_render(str(path), scene=sc)
+        images[engine] = _read_multilayer(path)[0]
+    for name, bound in (("Depth", 0.03), ("Position", 0.03), ("Normal", 1e-5)):
+        err = np.abs(images["EMBER"][name] - images["CYCLES"][name]).max(axis=-1)
+        assert np.median(err) < bound, (name, np.median(err))

@@ -73,7 +73,7 @@ def test_passes_cost_nothing_unrequested_and_leave_combined_unchanged():
 
 
 def test_hit_passes_on_a_facing_plane_are_exact():
-    """A diffuse plane facing the camera at distance 2: Depth 2 (sample 0, not averaged),
+    """A diffuse plane facing the camera at distance 2: Depth 2,
     Normal towards the camera, Position on the plane (world space, after recentring), Albedo
     the base colour - noise-free."""
     plane = quads_mesh([[(4, 2, 0), (10, 2, 0), (10, 2, 6), (4, 2, 6)]], [0])

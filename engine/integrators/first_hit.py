@@ -32,8 +32,8 @@ class FirstHit:
         # Cycles' camera space: x right, y up, z forward (Blender's camera looks down -z).
         self.camera_from_world = rot.T * np.array([1.0, 1.0, -1.0])[:, None]
 
-    def passes(self, sampler, px: np.ndarray, py: np.ndarray, sample: np.ndarray) -> dict:
-        """name -> (N, channels) for the paths of one batch (pixel px, py; sample index)."""
+    def passes(self, sampler, px: np.ndarray, py: np.ndarray) -> dict:
+        """name -> (N, channels) for the paths of one batch (pixels px, py)."""
         s, n = self.scene.settings, len(px)
         o64, d, tmax = camera_mod.generate_rays(self.scene.camera, s, px, py, sampler.get(0, None, 2))
         hit = self.accel.intersect(o64.astype(np.float32), d, tmax, np.full(n, -1, np.int64))
@@ -51,9 +51,8 @@ class FirstHit:
             full[rows] = values.reshape(len(rows), channels)
             return full
 
-        if "Depth" in self.wanted:  # the first sample only (Cycles): the film keeps a value, not a mean
-            z = np.where(sample[rows] == s.sample_offset, (p - self.eye) @ self.forward, 0.0)
-            out["Depth"] = at_hits(z, 1)
+        if "Depth" in self.wanted:
+            out["Depth"] = at_hits((p - self.eye) @ self.forward, 1)
         if "Position" in self.wanted:
             out["Position"] = at_hits(p + np.asarray(s.origin), 3)
         ng_f, ns = shading_frame(self.scene.mesh, self.flat_normal, prim, take(hit.b, rows), take(hit.ng, rows), -d_hit)
