@@ -188,6 +188,23 @@ PHOTON_OPTIONS = (
     ("--icache-view", "icache_view", str, "irradiance cache: full, records or indirect"),
 )
 ENUM_OPTIONS = ("photon_view", "photon_kernel", "icache_weight", "icache_gather", "icache_view")
+# Light-path options (path tracer), same form as PHOTON_OPTIONS.
+_bounce_limit = _int_at_least(1)
+LIGHT_PATH_OPTIONS = (
+    ("--diffuse-bounces", "diffuse_bounces", _bounce_limit, "most diffuse bounces on a path (Cycles' + 1)"),
+    ("--glossy-bounces", "glossy_bounces", _bounce_limit, "most glossy bounces on a path (Cycles' + 1)"),
+    ("--transmission-bounces", "transmission_bounces", _bounce_limit,
+     "most transmission bounces on a path (Cycles' + 1)"),
+    ("--transparent-bounces", "transparent_bounces", _non_negative_int, "most transparent passes on a path"),
+    ("--caustics-reflective", "caustics_reflective", _on_off, "on|off: glossy reflection after diffuse"),
+    ("--caustics-refractive", "caustics_refractive", _on_off, "on|off: refraction after diffuse"),
+    ("--clamp-direct", "clamp_direct", _finite_at_least_zero("a number such as 10"),
+     "clamp direct-light samples to this mean RGB (0 = off)"),
+    ("--clamp-indirect", "clamp_indirect", _finite_at_least_zero("a number such as 10"),
+     "clamp indirect-light samples to this mean RGB (0 = off)"),
+    ("--filter-glossy", "filter_glossy", _finite_at_least_zero("a number such as 1"),
+     "blur glossy reflections after rough bounces (0 = off)"),
+)
 
 
 def _resolution(text):
@@ -229,7 +246,7 @@ def build_parser(blend_required: bool) -> argparse.ArgumentParser:
                    help="sample pattern: sobol (Owen-scrambled, the default) or random (independent)")
     p.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT in pixels")
     p.add_argument("--max-depth", type=_max_depth, help="longest light path (1..1024)")
-    for option, prop, kind, text in PHOTON_OPTIONS:
+    for option, prop, kind, text in PHOTON_OPTIONS + LIGHT_PATH_OPTIONS:
         p.add_argument(option, dest=prop, type=kind, help=text)
     p.add_argument("--reference", help="linear EXR to print relMSE against while rendering")
     p.add_argument("--sample-offset", type=_non_negative_int,
@@ -521,6 +538,9 @@ def _apply_settings(scene, args) -> None:
                 raise UsageError(f"unknown {what} {value!r} (choose one of: {', '.join(i.lower() for i in items)})")
             value = value.upper()
         setattr(ember, prop, value)
+    for _, prop, _, _ in LIGHT_PATH_OPTIONS:
+        if getattr(args, prop) is not None:
+            setattr(ember, prop, getattr(args, prop))
     if args.integrator is not None:
         items = {i.identifier: i for i in type(ember).bl_rna.properties["integrator"].enum_items}
         wanted = args.integrator.strip().upper()

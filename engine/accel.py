@@ -76,18 +76,38 @@ class Accel:
         self._lock = threading.Lock()
         self.rays = 0
         self.embree_seconds = 0.0
-        self._embree = None
-        if self.n_triangles:
-            from embreex import rtcore as rtc
-            from embreex import rtcore_scene as rtcs
-            from embreex.mesh_construction import TriangleMesh
+        self._global_prim = None  # subset views: Embree's primID -> triangle index
+        self._stats = self  # where rays and Embree time are counted (subset views: the full Accel)
+        self._embree = self._build(mesh.vertices, mesh.triangles) if self.n_triangles else None
 
-            self._device = rtc.EmbreeDevice()
-            self._embree = rtcs.EmbreeScene(self._device)
-            TriangleMesh(self._embree, np.ascontiguousarray(mesh.vertices, np.float32),
-                         np.ascontiguousarray(mesh.triangles, np.int32))
-            # Commit now (the first run() would), so threads never race on it.
-            self._embree.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
+    def _build(self, vertices, triangles):
+        from embreex import rtcore as rtc
+        from embreex import rtcore_scene as rtcs
+        from embreex.mesh_construction import TriangleMesh
+
+        self._device = rtc.EmbreeDevice()
+        scene = rtcs.EmbreeScene(self._device)
+        TriangleMesh(scene, np.ascontiguousarray(vertices, np.float32), np.ascontiguousarray(triangles, np.int32))
+        # Commit now (the first run() would), so threads never race on it.
+        scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
+        return scene
+
+    def subset(self, triangles: np.ndarray, mesh: Mesh) -> "Accel":
+        """The same queries over only the triangles `triangles` (K,) of `mesh` (hits report
+        their index in the full mesh): what one kind of ray sees when objects are hidden from
+        it (Cycles' ray visibility). Shares this one's per-triangle arrays."""
+        view = object.__new__(Accel)
+        view.__dict__.update({k: v for k, v in self.__dict__.items() if k not in ("_device", "_embree")})
+        view._global_prim = np.asarray(triangles, np.int64)
+        view._embree = view._build(mesh.vertices, mesh.triangles[triangles]) if len(triangles) else None
+        return view
+
+    def _prims(self, prim_id) -> np.ndarray:
+        """Triangle indices (int64, -1 for a miss) of Embree's primIDs."""
+        prim = prim_id.astype(np.int64)
+        if self._global_prim is not None:
+            prim = np.where(prim >= 0, self._global_prim[np.maximum(prim, 0)], -1)
+        return prim
 
     def _run(self, o32, d32, tfar32, query):
         t0 = time.perf_counter()
@@ -96,9 +116,10 @@ class Accel:
         else:
             out = self._embree.run(o32, d32, dists=tfar32, query="OCCLUDED")
         dt = time.perf_counter() - t0
-        with self._lock:
-            self.embree_seconds += dt
-            self.rays += len(o32)
+        stats = self._stats
+        with stats._lock:
+            stats.embree_seconds += dt
+            stats.rays += len(o32)
         return out
 
     def intersect(self, o: np.ndarray, d: np.ndarray, tmax=None, skip_prim=None) -> Hit:
@@ -112,7 +133,7 @@ class Accel:
         d32 = np.ascontiguousarray(d, np.float32)
         tfar = np.full(n, 1e30, np.float32) if tmax is None else np.minimum(tmax, 1e30).astype(np.float32)
         r = self._run(o32, d32, tfar.copy(), "INTERSECT")  # Embree writes hit distances into it
-        prim = r["primID"].astype(np.int64)
+        prim = self._prims(r["primID"])
         t = r["tfar"].astype(np.float64)
         b1, b2 = r["u"].astype(np.float64), r["v"].astype(np.float64)
         if skip_prim is not None:
@@ -139,7 +160,7 @@ class Accel:
             o_new = offset_origin(o32[active] + step[:, None] * d32[active], through)
             t_base = t[active]
             r = self._run(o_new, d32[active], np.maximum(tfar[active] - step, 0).astype(np.float32), "INTERSECT")
-            again_prim = r["primID"].astype(np.int64)
+            again_prim = self._prims(r["primID"])
             prim[active] = again_prim
             t[active] = t_base + r["tfar"]
             b1[active], b2[active] = r["u"], r["v"]

@@ -3,6 +3,12 @@
 Pixel (x, y) counts from the top-left; the image rectangle `Camera.window` maps pixel
 edges 0..W, 0..H to left..right, top..bottom. Clipping is planar along the view axis
 (Cycles' camera: near/far clip divided by the ray's cosine to the view axis).
+
+Depth of field follows Cycles' thin lens (kernel/camera/camera.h): a point on the aperture
+(a disk, or a regular polygon of `blades` corners, x divided by the anamorphic ratio) times
+the aperture radius; the ray leaves it toward the point where the pinhole ray meets the
+plane of focus, and is clipped as the pinhole ray would be. The lens has its own random
+group (LENS_GROUP), drawn only when the aperture is open, so pinhole images do not change.
 """
 from __future__ import annotations
 
@@ -13,8 +19,40 @@ from .scene import Camera, Settings
 from .vec import normalize, scale
 
 
-def generate_rays(camera: Camera, settings: Settings, px: np.ndarray, py: np.ndarray, u_filter: np.ndarray):
-    """px, py (N,) integer pixel coordinates; u_filter (N,2).
+# rng.Sampler group of the lens sample; far above the groups integrators count per bounce.
+LENS_GROUP = 1 << 16
+
+
+def camera_rays(camera: Camera, settings: Settings, px: np.ndarray, py: np.ndarray, sampler):
+    """generate_rays with the pixel filter from group 0 and the lens from LENS_GROUP."""
+    u_lens = sampler.get(LENS_GROUP, None, 2) if camera.aperture_radius > 0 else None
+    return generate_rays(camera, settings, px, py, sampler.get(0, None, 2), u_lens)
+
+
+def sample_aperture(camera: Camera, u: np.ndarray) -> np.ndarray:
+    """Points (N,2) on the aperture in camera x, y (metres) from u (N,2): Cycles'
+    camera_sample_aperture (uniform disk, or regular_polygon_sample's uniform point in one of
+    `blades` triangles around the centre) scaled by the radius, x divided by the ratio."""
+    if camera.blades >= 3:
+        corners = float(camera.blades)
+        c = np.floor(u[:, 0] * corners)
+        s = np.sqrt(u[:, 0] * corners - c)  # reused u: uniform in [0, 1) within the corner
+        a, b = 1.0 - s, u[:, 1] * s  # uniform barycentrics of the triangle (0, c1, c2)
+        half = np.pi / corners
+        x, y = (a + b) * np.cos(half), (a - b) * np.sin(half)
+        rot = camera.blade_rotation + c * 2.0 * half
+        cr, sr = np.cos(rot), np.sin(rot)
+        p = np.stack([cr * x - sr * y, sr * x + cr * y], axis=1)
+    else:
+        p = sampling.sample_concentric_disk(u)
+    p = p * camera.aperture_radius
+    p[:, 0] /= camera.aperture_ratio
+    return p
+
+
+def generate_rays(camera: Camera, settings: Settings, px: np.ndarray, py: np.ndarray, u_filter: np.ndarray,
+                  u_lens: np.ndarray = None):
+    """px, py (N,) integer pixel coordinates; u_filter (N,2); u_lens (N,2) or None (pinhole).
     Returns origins (N,3), unit directions (N,3), tmax (N,) (distance to the far clip)."""
     offset = sampling.sample_pixel_filter(settings.filter, settings.filter_width, u_filter)
     fx = (px + 0.5 + offset[:, 0]) / settings.width
@@ -34,6 +72,19 @@ def generate_rays(camera: Camera, settings: Settings, px: np.ndarray, py: np.nda
         d_cam = np.stack([x * inv_len, y * inv_len, -inv_len], axis=1)
         cos_axis = inv_len
         o_cam = scale(d_cam, camera.clip_start / cos_axis)
+    if u_lens is not None and camera.aperture_radius > 0:
+        lens = np.zeros((n, 3))
+        lens[:, :2] = sample_aperture(camera, u_lens)
+        # The pinhole ray meets the plane of focus (z = -focus_distance) at `focus`.
+        focus = (np.stack([x, y, np.full(n, -1.0)], axis=1) * camera.focus_distance if not camera.ortho
+                 else o_cam + d_cam * (camera.focus_distance - camera.clip_start))
+        if camera.ortho:
+            lens[:, :2] += o_cam[:, :2]
+        d_cam = normalize(focus - lens)
+        # Clipped where the pinhole ray would be: clip_start / cos along the new direction
+        # (Cycles: nearclip * z_inv of the pinhole ray; orthographic: at the near plane).
+        start = camera.clip_start / cos_axis if not camera.ortho else camera.clip_start / -d_cam[:, 2]
+        o_cam = lens + scale(d_cam, start)
     o = o_cam @ rot.T + eye
     d = normalize(d_cam @ rot.T)  # rot may carry the object's scale
     tmax = (camera.clip_end - camera.clip_start) / cos_axis

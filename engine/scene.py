@@ -48,6 +48,14 @@ LIGHT_SUN = 2
 LIGHT_RECT = 3
 LIGHT_DISK = 4  # disk or ellipse
 
+# Ray visibility (Cycles' object, light and world visibility): bit set = seen by that kind
+# of ray. A ray is a camera ray until its first non-transparent bounce, then a diffuse,
+# glossy or transmission ray by that bounce's kind; shadow rays are light samples' rays.
+# HOLDOUT marks triangles that camera rays see as a hole (Cycles' Holdout object).
+RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, RAY_SHADOW = 1, 2, 4, 8, 16
+RAY_ALL = 31
+HOLDOUT = 32
+
 FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
 # Direct-light strategies: both combined by MIS (default), or one alone (for studies and the
 # strategy-agreement tests; each alone is unbiased too, where it can reach the light).
@@ -66,7 +74,9 @@ class Mesh:
     vertices (V,3) float32 world positions; triangles (T,3) int32 vertex indices;
     normals (T,3,3) float32 world-space corner (shading) normals, unit length;
     material (T,) int32 index into Materials; uvs (T,3,2) float32 corner texture
-    coordinates of the active render UV map (zeros without one, as Cycles).
+    coordinates of the active render UV map (zeros without one, as Cycles);
+    visibility (T,) uint8 RAY_* bits (+ HOLDOUT) of each triangle's object, or None: every
+    triangle seen by every ray, no holdout.
     """
 
     vertices: np.ndarray
@@ -74,6 +84,7 @@ class Mesh:
     normals: np.ndarray
     material: np.ndarray
     uvs: np.ndarray = None
+    visibility: np.ndarray = None
 
     def __post_init__(self):
         if self.uvs is None:
@@ -306,6 +317,9 @@ class Lights:
     spot_cos_half (L,), spot_smooth (L,): Cycles' smoothstep((cos - cos_half)/smooth).
     sun_half_angle (L,) radians.
     visible (L,) bool: seen by camera rays (Cycles' visible_camera).
+    ray_visibility (L,) uint8 RAY_* bits: the ray kinds that see the light (camera: as
+    `visible`) and the BSDF lobes it lights (diffuse, glossy, transmission; Cycles' light
+    object visibility).
     """
 
     kind: np.ndarray
@@ -320,6 +334,12 @@ class Lights:
     sun_half_angle: np.ndarray
     visible: np.ndarray
     names: tuple = ()
+    ray_visibility: np.ndarray = None
+
+    def __post_init__(self):
+        if self.ray_visibility is None:
+            vis = np.where(np.asarray(self.visible, bool), RAY_ALL, RAY_ALL & ~RAY_CAMERA).astype(np.uint8)
+            object.__setattr__(self, "ray_visibility", vis.reshape(len(self.kind)))
 
     @staticmethod
     def make(rows: list[dict]) -> "Lights":
@@ -340,6 +360,8 @@ class Lights:
             sun_half_angle=np.array(g("sun_half_angle", 0.0), np.float64).reshape(n),
             visible=np.array(g("visible", True), bool).reshape(n),
             names=tuple(g("name", "light")),
+            ray_visibility=np.array([r.get("ray_visibility", RAY_ALL if r.get("visible", True) else RAY_ALL & ~RAY_CAMERA)
+                                     for r in rows], np.uint8).reshape(n),
         )
 
     def __len__(self) -> int:
@@ -361,6 +383,8 @@ class World:
     env_from_world (3,3): the image is looked up at direction env_from_world @ d (normalised),
     as Cycles' Mapping node transforms the lookup vector (rotation, scale).
     visible: seen by camera rays (Cycles' camera ray visibility and film transparency).
+    ray_visibility: RAY_* bits of the ray kinds that see the world and the lobes it lights
+    (its camera bit is ignored: `visible` says that).
     """
 
     color: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -368,6 +392,7 @@ class World:
     image: np.ndarray = None
     projection: str = "EQUIRECTANGULAR"
     env_from_world: np.ndarray = field(default_factory=lambda: np.eye(3))
+    ray_visibility: int = RAY_ALL
 
 
 @dataclass(frozen=True)
@@ -385,6 +410,16 @@ class Camera:
     ortho: bool = False
     clip_start: float = 0.1
     clip_end: float = 1000.0
+    # Thin lens (Cycles' camera.h): rays start on the aperture and meet the pinhole ray on the
+    # plane focus_distance along the view axis. aperture_radius (m, 0 = pinhole) is Blender's
+    # lens / (2 f-stop) (1 / (2 f-stop) for orthographic cameras); blades >= 3 make a regular
+    # polygon inscribed in that radius, turned by blade_rotation (radians); aperture_ratio > 1
+    # squeezes the aperture horizontally (anamorphic bokeh).
+    aperture_radius: float = 0.0
+    focus_distance: float = 10.0
+    blades: int = 0
+    blade_rotation: float = 0.0
+    aperture_ratio: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -441,6 +476,23 @@ class Settings:
     passes: tuple = ()
     film_transparent: bool = False
     origin: tuple = (0.0, 0.0, 0.0)  # world position of the core's (0, 0, 0) (see recentred)
+    # Light paths (path tracer; Cycles' semantics, see engine/integrators/path.py). Limits count
+    # surface interactions of one kind on a path, like max_depth (Cycles' diffuse, glossy and
+    # transmission bounces + 1; transparent passes as Cycles counts them, and they do not
+    # count toward max_depth).
+    diffuse_bounces: int = 64
+    glossy_bounces: int = 64
+    transmission_bounces: int = 64
+    transparent_bounces: int = 64
+    caustics_reflective: bool = True  # glossy reflection seen right after a diffuse bounce
+    caustics_refractive: bool = True  # refraction seen right after a diffuse bounce
+    # Cycles' sample clamping (0 = off): the mean of a path contribution's |R|, |G|, |B| is
+    # scaled down to this; "direct" is light reaching the camera after at most one bounce.
+    clamp_direct: float = 0.0
+    clamp_indirect: float = 0.0
+    # Cycles' Filter Glossy (0 = off): after rough bounces, glossy lobes get a GGX alpha of at
+    # least sqrt(1 - p / filter_glossy) / 2, p the smallest BSDF pdf on the path so far.
+    filter_glossy: float = 0.0
 
     def __post_init__(self):
         if self.border is None:

@@ -31,7 +31,7 @@ from .parallel.shared import Publisher
 from .scene import Scene, recentred
 from . import tracer as tracer_mod
 from .tracer import Tracer
-from .validation import has_light, validate
+from .validation import has_light, path_only_warnings, validate
 
 UPDATE_INTERVAL = 0.25
 NOISE_INTERVAL = 1.0
@@ -98,6 +98,7 @@ class RenderSession:
             self.warnings.append(f"The noise target does not apply to the '{scene.settings.integrator}' integrator "
                                  "(its passes are not independent samples of one image); it is ignored.")
             scene = scene.replace(settings=scene.settings.replace(noise_target=0.0))
+        self.warnings += path_only_warnings(scene)
         self.scene = scene
         s = scene.settings
         self.integrator = integrators.create(scene)  # the render-process side: stages, reduce

@@ -5,6 +5,7 @@ One place for them, so the CLI, F12 and tests give the same message for the same
 """
 from __future__ import annotations
 
+import math
 import os
 
 import numpy as np
@@ -53,6 +54,8 @@ def validate(scene: Scene) -> None:
     unknown = sorted(set(s.passes) - set(PASS_NAMES))
     if unknown:
         problems.append(f"unknown render pass(es) {', '.join(unknown)} (use some of {', '.join(PASS_NAMES)})")
+    problems += light_path_problems(s)
+    problems += lens_problems(scene.camera)
     if problems:
         raise EmberError("Invalid render settings: " + "; ".join(problems))
     check_light_values(scene)
@@ -258,3 +261,54 @@ def icache_problems(s) -> list[str]:
         if value not in allowed:
             problems.append(f"unknown irradiance-cache {name} {value!r} (use one of {', '.join(allowed)})")
     return problems
+
+
+def light_path_problems(s) -> list[str]:
+    """What is wrong with the path tracer's bounce limits and clamping (empty if nothing)."""
+    problems = []
+    for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "transparent_bounces"):
+        least = 0 if name == "transparent_bounces" else 1
+        if not getattr(s, name) >= least:
+            problems.append(f"{name.replace('_', ' ')} must be at least {least} (got {getattr(s, name)})")
+    for name in ("clamp_direct", "clamp_indirect", "filter_glossy"):
+        value = getattr(s, name)
+        if not (value >= 0 and math.isfinite(value)):
+            problems.append(f"{name.replace('_', ' ')} must be a finite number >= 0, 0 = off (got {value})")
+    return problems
+
+
+def lens_problems(camera) -> list[str]:
+    """What is wrong with the camera's depth of field (empty if nothing)."""
+    problems = []
+    if not (camera.aperture_radius >= 0 and math.isfinite(camera.aperture_radius)):
+        problems.append(f"aperture radius must be a finite number >= 0 (got {camera.aperture_radius})")
+    if camera.aperture_radius > 0:
+        if not (camera.focus_distance > 0 and math.isfinite(camera.focus_distance)):
+            problems.append(f"focus distance must be positive (got {camera.focus_distance})")
+        if not (camera.aperture_ratio > 0 and math.isfinite(camera.aperture_ratio)):
+            problems.append(f"aperture ratio must be positive (got {camera.aperture_ratio})")
+    return problems
+
+
+def path_only_warnings(scene) -> list[str]:
+    """Warnings for controls that only the path tracer honours, when another integrator
+    renders a scene that uses them (the photon integrators trace every ray against the whole
+    scene and use Max Bounces alone)."""
+    s = scene.settings
+    if s.integrator == "path":
+        return []
+    from .scene import RAY_ALL, RAY_CAMERA, Settings
+    out = []
+    default = Settings()
+    names = ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "transparent_bounces",
+             "caustics_reflective", "caustics_refractive", "clamp_direct", "clamp_indirect", "filter_glossy")
+    changed = [n.replace("_", " ") for n in names if getattr(s, n) != getattr(default, n)]
+    if changed:
+        out.append(f"The '{s.integrator}' integrator ignores {', '.join(changed)} (Path Tracing only; "
+                   "it uses Max Bounces alone).")
+    lobes = RAY_ALL & ~RAY_CAMERA
+    if (scene.mesh.visibility is not None or np.any((scene.lights.ray_visibility & lobes) != lobes)
+            or (scene.world.ray_visibility & lobes) != lobes):
+        out.append(f"The '{s.integrator}' integrator ignores ray visibility and holdouts (Path Tracing only); "
+                   "every object is seen by every ray (lights and the world keep their camera visibility).")
+    return out

@@ -6,6 +6,8 @@
 Cycles on the CPU, unbiased settings: denoising, adaptive sampling and clamping off, light
 threshold 0, filter glossy 0, caustics on, every bounce limit 64, the scene's own pixel
 filter, `use_animated_seed` off and seed = run index (plus --seed-offset) per run.
+--keep-light-paths keeps the file's own bounce limits, caustics and clamping instead (the
+light-path test scenes of scenes/build_light_paths.py).
 
 Output channels (float32, rows top-down, row 0 = top of the image):
   R, G, B            mean over runs
@@ -41,26 +43,28 @@ from ember.engine import imageio  # noqa: E402
 BOUNCES = 64
 
 
-def unbiased_cycles(scene, samples: int, threads: int = 0) -> dict:
-    """Set Cycles to an unbiased CPU configuration; return the settings as a dict."""
+def unbiased_cycles(scene, samples: int, threads: int = 0, keep_light_paths: bool = False) -> dict:
+    """Set Cycles to an unbiased CPU configuration; return the settings as a dict.
+    keep_light_paths: leave the file's bounce limits, caustics and clamping as they are."""
     scene.render.engine = "CYCLES"
     c = scene.cycles
     c.device = "CPU"
     c.samples = samples
     c.use_adaptive_sampling = False
     c.use_denoising = False
-    c.sample_clamp_direct = 0.0
-    c.sample_clamp_indirect = 0.0
     c.light_sampling_threshold = 0.0
     c.blur_glossy = 0.0  # "Filter Glossy"
-    c.caustics_reflective = True
-    c.caustics_refractive = True
-    c.max_bounces = BOUNCES
-    c.diffuse_bounces = BOUNCES
-    c.glossy_bounces = BOUNCES
-    c.transmission_bounces = BOUNCES
-    c.transparent_max_bounces = BOUNCES
-    c.volume_bounces = BOUNCES
+    if not keep_light_paths:
+        c.sample_clamp_direct = 0.0
+        c.sample_clamp_indirect = 0.0
+        c.caustics_reflective = True
+        c.caustics_refractive = True
+        c.max_bounces = BOUNCES
+        c.diffuse_bounces = BOUNCES
+        c.glossy_bounces = BOUNCES
+        c.transmission_bounces = BOUNCES
+        c.transparent_max_bounces = BOUNCES
+        c.volume_bounces = BOUNCES
     c.use_animated_seed = False
     scene.render.use_persistent_data = True  # sync the scene once for all runs
     scene.render.threads_mode = "FIXED" if threads else "AUTO"
@@ -120,6 +124,8 @@ def main(argv=None):
     ap.add_argument("--samples", type=int, default=1024, help="samples per pixel per run")
     ap.add_argument("--threads", type=int, default=0, help="0 = Blender's automatic count")
     ap.add_argument("--seed-offset", type=int, default=0, help="run i uses seed offset + i")
+    ap.add_argument("--keep-light-paths", action="store_true",
+                    help="keep the file's bounce limits, caustics and clamping")
     args = ap.parse_args(argv)
     if args.runs < 2:
         ap.error("--runs must be at least 2 (the variance needs it)")
@@ -130,7 +136,7 @@ def main(argv=None):
         w, h = (int(v) for v in args.resolution.lower().split("x"))
         scene.render.resolution_x, scene.render.resolution_y = w, h
     scene.render.resolution_percentage = 100
-    settings = unbiased_cycles(scene, args.samples, args.threads)
+    settings = unbiased_cycles(scene, args.samples, args.threads, args.keep_light_paths)
     W, H = scene.render.resolution_x, scene.render.resolution_y
 
     total = np.zeros((H, W, 3))

@@ -144,3 +144,27 @@ def test_a_ray_leaving_its_triangle_from_the_surface_finds_what_lies_beyond():
     d = np.tile([0.0, 0.0, 1.0], (n, 1))
     hit = accel.intersect(p.astype(np.float32), d, skip_prim=prim)
     assert np.all(hit.prim >= 0) and np.allclose(hit.t, 2.0, atol=1e-5)
+
+
+def test_subset_view_skips_hidden_triangles_and_reports_full_indices():
+    """Accel.subset (ray visibility): a ray passes through the triangles the view leaves out,
+    hits report their index in the full mesh, shadow rays too, and rays and Embree time are
+    counted on the full Accel."""
+    quads = [[(-1, -1, z), (1, -1, z), (1, 1, z), (-1, 1, z)] for z in (1.0, 2.0, 3.0)]
+    v = np.array(quads, np.float32).reshape(-1, 3)
+    t = np.array([[4 * q, 4 * q + 1, 4 * q + 2] for q in range(3)] + [[4 * q, 4 * q + 2, 4 * q + 3] for q in range(3)],
+                 np.int32)
+    mesh = Mesh(v, t, np.zeros((6, 3, 3), np.float32), np.zeros(6, np.int32))
+    full = Accel(mesh)
+    view = full.subset(np.array([1, 4]), mesh)  # the quad at z = 2 only
+    o = np.zeros((2, 3), np.float32)
+    d = np.array([[0.1, 0.2, 1.0], [-0.3, -0.1, 1.0]])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    assert set(full.intersect(o, d).prim.tolist()) <= {0, 3}
+    hit = view.intersect(o, d)
+    assert set(hit.prim.tolist()) <= {1, 4}
+    np.testing.assert_allclose(hit.p[:, 2], 2.0, atol=1e-6)
+    assert view.occluded(o, np.array([[0.0, 0.0, 1.5], [0.0, 0.0, 2.5]])).tolist() == [False, True]
+    empty = full.subset(np.array([], np.int64), mesh)
+    assert (empty.intersect(o, d).prim == -1).all()
+    assert full.rays >= 6  # the views' rays are counted here

@@ -35,7 +35,8 @@ STOCK_PANELS = ("RENDER_PT_format", "RENDER_PT_output", "DATA_PT_lens",
                 "EEVEE_MATERIAL_PT_context_material", "EEVEE_MATERIAL_PT_surface",
                 "EEVEE_WORLD_PT_surface", "DATA_PT_EEVEE_light", "DATA_PT_camera_dof",
                 "DATA_PT_camera_dof_aperture", "RENDER_PT_color_management")
-OWN_PANELS = ("EMBER_RENDER_PT_sampling", "EMBER_RENDER_PT_light_paths", "EMBER_RENDER_PT_performance")
+OWN_PANELS = ("EMBER_RENDER_PT_sampling", "EMBER_RENDER_PT_light_paths", "EMBER_RENDER_PT_performance",
+              "EMBER_RENDER_PT_motion_blur", "EMBER_OBJECT_PT_visibility", "EMBER_WORLD_PT_visibility")
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -99,6 +99,9 @@ def _one_clear_line(stderr, *words):
     (["ok.blend", "--photon-k", "1"], ["--photon-k", "at least 2"]),
     (["ok.blend", "--radiance-photons", "maybe"], ["--radiance-photons", "on or off"]),
     (["ok.blend", "--global-radius", "-1"], ["--global-radius"]),
+    (["ok.blend", "--diffuse-bounces", "0"], ["--diffuse-bounces", "at least 1"]),
+    (["ok.blend", "--clamp-indirect", "-1"], ["--clamp-indirect"]),
+    (["ok.blend", "--caustics-refractive", "maybe"], ["--caustics-refractive", "on or off"]),
     (["ok.blend", "-o", "no/such/dir/out.png"], ["output directory does not exist"]),
     (["ok.blend", "-o", "ok.blend/out.png"], ["output directory does not exist"]),
     (["ok.blend", "-o", "out.jpg"], [".png or .exr"]),
@@ -195,6 +198,22 @@ def test_render_png(scenes):
     assert (img[..., 3] == 255).all()
     assert img[..., :3].max() > 20 and (img[..., :3] > 5).mean() > 0.3
     assert "2 samples" in out.strip().splitlines()[-1]
+
+
+def test_light_path_options_reach_the_render(scenes):
+    """--clamp-direct 0.01 darkens the directly lit plane (each light sample's mean RGB at most
+    0.01); the other light-path options are accepted."""
+    from ember.engine import imageio
+
+    means = []
+    for extra in ([], ["--diffuse-bounces", "1", "--clamp-indirect", "0.5", "--clamp-direct", "0.01",
+                       "--caustics-reflective", "off", "--caustics-refractive", "off", "--filter-glossy", "1",
+                       "--glossy-bounces", "2", "--transmission-bounces", "3", "--transparent-bounces", "4"]):
+        code, out, err = run(scenes, "ok.blend", "-o", "lp.exr", "--samples", "4", "--resolution", "16x12", *extra)
+        assert code == 0, err
+        ch, _ = imageio.read_exr(scenes / "lp.exr")
+        means.append(float(np.mean([ch[c] for c in "RGB"])))
+    assert means[1] < 0.05 and means[0] > 0.2, means
 
 
 @pytest.mark.parametrize("integrator, args, words", [

@@ -641,12 +641,65 @@ def test_errors_for_unrenderable_scenes():
     add_light("POINT")
     scene, _ = export()
     assert scene.mesh.n_triangles == 0 and len(scene.lights) == 1
-    # Partly visible objects are rendered, with one summary warning.
+    # Partly visible objects are rendered, their ray visibility per triangle.
     ob.visible_shadow = True
     cube(location=(3, 0, 0)).visible_camera = False
     scene, warnings = export()
-    assert scene.mesh.n_triangles == 24
-    assert len(warnings) == 1 and "visibility" in warnings[0] and "'Cube'" in warnings[0] and "'Cube.001'" in warnings[0]
+    assert scene.mesh.n_triangles == 24 and not warnings
+    assert sorted(set(scene.mesh.visibility.tolist())) == [S.RAY_SHADOW, S.RAY_ALL & ~S.RAY_CAMERA]
+
+
+def test_ray_visibility_of_objects_lights_and_world():
+    """Cycles' visibility checkboxes (Object > Visibility > Ray Visibility, the world's Ray
+    Visibility) and Holdout become RAY_* bits; a scene without any has no per-triangle array."""
+    sc = new_scene()
+    ob = cube()
+    light = add_light("POINT")
+    scene, _ = export()
+    assert scene.mesh.visibility is None and scene.world.ray_visibility == S.RAY_ALL
+    assert scene.lights.ray_visibility.tolist() == [S.RAY_ALL & ~S.RAY_CAMERA]  # Blender's default for lights
+    light.visible_camera = True
+    assert export()[0].lights.ray_visibility.tolist() == [S.RAY_ALL]
+    ob.visible_glossy = False
+    ob.is_holdout = True
+    light.visible_diffuse = False
+    light.visible_camera = False
+    sc.world = bpy.data.worlds.new("W")
+    sc.world.cycles_visibility.transmission = False
+    scene, warnings = export()
+    assert not warnings
+    assert set(scene.mesh.visibility.tolist()) == {(S.RAY_ALL & ~S.RAY_GLOSSY) | S.HOLDOUT}
+    assert scene.lights.ray_visibility.tolist() == [S.RAY_ALL & ~S.RAY_DIFFUSE & ~S.RAY_CAMERA]
+    assert not scene.lights.visible[0]
+    assert scene.world.ray_visibility == S.RAY_ALL & ~S.RAY_TRANSMIT
+
+
+def test_depth_of_field_as_cycles_reads_it():
+    """Aperture radius lens / (2 f-stop) in metres (Cycles' blender/camera.cpp), the focus
+    object's distance along the view axis, 0 blades meaning round."""
+    sc = new_scene()
+    cube()
+    cam = sc.camera
+    assert export()[0].camera.aperture_radius == 0.0  # DOF off: a pinhole
+    cam.data.lens = 50.0
+    dof = cam.data.dof
+    dof.use_dof, dof.aperture_fstop, dof.focus_distance = True, 2.0, 7.5
+    dof.aperture_blades, dof.aperture_rotation, dof.aperture_ratio = 0, 0.5, 1.5
+    c = export()[0].camera
+    assert c.aperture_radius == pytest.approx(0.05 / 4.0)
+    assert (c.focus_distance, c.blades, c.blade_rotation, c.aperture_ratio) == (7.5, 0, 0.5, 1.5)
+    dof.aperture_blades = 6
+    target = bpy.data.objects.new("Target", None)
+    sc.collection.objects.link(target)
+    target.location = cam.matrix_world @ __import__("mathutils").Vector((1.0, 0.5, -3.0))  # 3 m ahead, off axis
+    bpy.context.view_layer.update()
+    c = export()[0].camera
+    assert c.blades == 6
+    dof.focus_object = target
+    bpy.context.view_layer.update()
+    assert export()[0].camera.focus_distance == pytest.approx(3.0, rel=1e-5)
+    cam.data.type = "ORTHO"
+    assert export()[0].camera.aperture_radius == pytest.approx(1.0 / 4.0)
 
 
 def test_cancel_and_progress():

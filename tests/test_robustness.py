@@ -330,7 +330,7 @@ def test_renderable_edge_scenes(bad_scenes, name, expect):
                  "Warning: Volume shaders are not supported and are ignored (a material with only a volume "
                  "renders as a transparent surface): 'Smoke'."]),
     ("nan_vertices", ["Warning: Triangles with NaN or infinite vertex coordinates were dropped: 'broken'."]),
-    ("motion_blur", ["Warning: Motion blur is not supported yet and is ignored."]),
+    ("motion_blur", ["Warning: Motion blur is not supported yet: the image is rendered without it."]),
 ])
 def test_unsupported_features_warned_once_per_datablock(bad_scenes, name, expected):
     code, out, err = _cli(bad_scenes, f"{name}.blend", "-o", f"{name}.exr", "--samples", "2")

@@ -73,7 +73,98 @@ class EMBER_RENDER_PT_light_paths(EmberRenderPanel, bpy.types.Panel):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        layout.prop(context.scene.ember, "max_depth")
+        settings = context.scene.ember
+        layout.prop(settings, "max_depth")
+        path_only = settings.integrator == 'PATH'
+        col = layout.column(heading="Bounces", align=True)
+        col.active = path_only  # the photon integrators use Max Bounces alone
+        col.prop(settings, "diffuse_bounces")
+        col.prop(settings, "glossy_bounces")
+        col.prop(settings, "transmission_bounces")
+        col.prop(settings, "transparent_bounces")
+        col = layout.column(heading="Clamping", align=True)
+        col.active = path_only
+        col.prop(settings, "clamp_direct")
+        col.prop(settings, "clamp_indirect")
+        col = layout.column(heading="Caustics", align=True)
+        col.active = path_only
+        col.prop(settings, "filter_glossy")
+        col.prop(settings, "caustics_reflective", text="Reflective")
+        col.prop(settings, "caustics_refractive", text="Refractive")
+        if not path_only:
+            layout.label(text="Per-type bounces, clamping and caustics apply to Path Tracing only",
+                         icon='INFO')
+
+
+class EMBER_RENDER_PT_motion_blur(EmberRenderPanel, bpy.types.Panel):
+    """Blender's motion blur switch, shown so that a scene that uses it says what Ember does."""
+    bl_label = "Motion Blur"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.render, "use_motion_blur", text="")
+
+    def draw(self, context):
+        col = self.layout.column()
+        if context.scene.render.use_motion_blur:
+            col.label(text="Not supported yet: Ember renders without motion blur", icon='ERROR')
+        else:
+            col.label(text="Not supported yet by Ember", icon='INFO')
+
+
+class EMBER_OBJECT_PT_visibility(bpy.types.Panel):
+    """Object Properties > Visibility (as Cycles'): which rays see the object; the path tracer
+    honours them (engine/visibility.py)."""
+    bl_label = "Ray Visibility"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "object"
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        ob = context.object
+        return context.engine in cls.COMPAT_ENGINES and ob is not None and ob.type in {'MESH', 'LIGHT'}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        ob = context.object
+        col = layout.column(heading="Ray Visibility", align=True)
+        col.prop(ob, "visible_camera", text="Camera")
+        col.prop(ob, "visible_diffuse", text="Diffuse")
+        col.prop(ob, "visible_glossy", text="Glossy")
+        col.prop(ob, "visible_transmission", text="Transmission")
+        if ob.type == 'MESH':
+            col.prop(ob, "visible_shadow", text="Shadow")
+            layout.prop(ob, "is_holdout")
+        if context.scene.ember.integrator != 'PATH':
+            layout.label(text="Ray visibility applies to Path Tracing only", icon='INFO')
+
+
+class EMBER_WORLD_PT_visibility(bpy.types.Panel):
+    """World Properties > Ray Visibility (as Cycles')."""
+    bl_label = "Ray Visibility"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "world"
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.world is not None
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        vis = context.world.cycles_visibility
+        col = layout.column(align=True)
+        col.prop(vis, "camera")
+        col.prop(vis, "diffuse")
+        col.prop(vis, "glossy")
+        col.prop(vis, "transmission")
 
 
 class EMBER_RENDER_PT_performance(EmberRenderPanel, bpy.types.Panel):
@@ -199,8 +290,9 @@ class EMBER_VIEWLAYER_PT_passes(EmberRenderPanel, bpy.types.Panel):
 
 
 classes = (EMBER_RENDER_PT_sampling, EMBER_RENDER_PT_sampling_advanced, EMBER_RENDER_PT_photons,
-           EMBER_RENDER_PT_icache, EMBER_RENDER_PT_light_paths, EMBER_RENDER_PT_performance, EMBER_RENDER_PT_film,
-           EMBER_VIEWLAYER_PT_passes)
+           EMBER_RENDER_PT_icache, EMBER_RENDER_PT_light_paths, EMBER_RENDER_PT_motion_blur,
+           EMBER_RENDER_PT_performance, EMBER_RENDER_PT_film, EMBER_VIEWLAYER_PT_passes, EMBER_OBJECT_PT_visibility,
+           EMBER_WORLD_PT_visibility)
 
 # The COMPAT_ENGINES sets we added ENGINE to (by identity: mixins share one set object).
 _added_to: dict = {}

@@ -200,6 +200,59 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
         items=ICACHE_VIEW_ITEMS,
         default='FULL',
     )
+    # Light paths (path tracer). Limits count interactions like Max Bounces: Cycles' value + 1.
+    diffuse_bounces: IntProperty(
+        name="Diffuse",
+        description="Most diffuse reflections on a path; the last one sees emitters only "
+                    "(1 = direct light only: Cycles' Diffuse bounces + 1)",
+        default=64, min=1, max=1024,
+    )
+    glossy_bounces: IntProperty(
+        name="Glossy",
+        description="Most glossy and mirror reflections on a path (Cycles' Glossy bounces + 1)",
+        default=64, min=1, max=1024,
+    )
+    transmission_bounces: IntProperty(
+        name="Transmission",
+        description="Most refractions on a path (Cycles' Transmission bounces + 1)",
+        default=64, min=1, max=1024,
+    )
+    transparent_bounces: IntProperty(
+        name="Transparent",
+        description="Most passes through transparent surfaces (as Cycles'); they do not count "
+                    "toward Max Bounces",
+        default=64, min=0, max=1024,
+    )
+    caustics_reflective: BoolProperty(
+        name="Reflective Caustics",
+        description="Glossy reflection seen right after a diffuse bounce (off: less noise, "
+                    "no reflective caustics)",
+        default=True,
+    )
+    caustics_refractive: BoolProperty(
+        name="Refractive Caustics",
+        description="Refraction seen right after a diffuse bounce (off: less noise, no "
+                    "refractive caustics)",
+        default=True,
+    )
+    clamp_direct: FloatProperty(
+        name="Direct Light",
+        description="Scale down direct-light samples whose mean RGB exceeds this (0 = off; "
+                    "biased, as Cycles' clamping)",
+        default=0.0, min=0.0, soft_max=100.0,
+    )
+    clamp_indirect: FloatProperty(
+        name="Indirect Light",
+        description="Scale down indirect-light samples whose mean RGB exceeds this (0 = off; "
+                    "tames fireflies, biased, as Cycles' clamping)",
+        default=0.0, min=0.0, soft_max=100.0,
+    )
+    filter_glossy: FloatProperty(
+        name="Filter Glossy",
+        description="Blur glossy reflections after rough bounces to reduce noise from caustics "
+                    "(0 = off; biased, as Cycles' Filter Glossy)",
+        default=0.0, min=0.0, soft_max=10.0,
+    )
 
 
 class EmberViewLayerSettings(bpy.types.PropertyGroup):

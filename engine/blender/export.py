@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import Cancelled, EmberError
-from ..scene import Lights, Scene, recentred, scene_origin  # noqa: F401 (recentred: tests use it here)
+from ..scene import HOLDOUT, RAY_ALL, Lights, Scene, recentred, scene_origin  # noqa: F401 (recentred: tests use it here)
 from .export_camera import export_camera
-from .export_light import export_light
+from .export_light import export_light, ray_visibility
 from .export_material import MaterialTable
 from .export_mesh import MeshCollector
 from .export_settings import export_settings
@@ -23,8 +23,6 @@ from .passes import enabled_passes
 
 CHECK_EVERY = 1000  # instances between test_break() polls
 REPORT_EVERY = 5000  # instances between progress reports
-_RAY_FLAGS = ("visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
-              "visible_shadow")
 _UNRENDERED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "point clouds", "VOLUME": "volumes",
                      "GREASEPENCIL": "grease pencil", "GPENCIL": "grease pencil"}
 
@@ -85,14 +83,11 @@ def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
         kind = ob.type
         if kind == "MESH":
             key = ob.original.as_pointer()
-            visible = visibility.get(key)
-            if visible is None:
-                flags = [bool(getattr(ob, f, True)) for f in _RAY_FLAGS]
-                visible = visibility[key] = any(flags)
-                if visible and not all(flags):
-                    warn.group("Per-ray-type object visibility is not supported and is ignored", ob.name)
-            if visible:
-                meshes.add(ob, inst.matrix_world.copy())
+            flags = visibility.get(key)
+            if flags is None:  # Cycles' ray visibility; an object no ray sees is left out
+                flags = visibility[key] = ray_visibility(ob) | (HOLDOUT if getattr(ob, "is_holdout", False) else 0)
+            if flags & RAY_ALL:
+                meshes.add(ob, inst.matrix_world.copy(), flags)
         elif kind == "LIGHT":
             row = export_light(ob, inst.matrix_world.copy(), warn)
             if row is not None:

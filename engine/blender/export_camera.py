@@ -82,14 +82,37 @@ def export_camera(depsgraph, scene, settings, warn) -> Camera:
         shift_y=cam.shift_y, width=settings.width, height=settings.height,
         pixel_aspect_x=render.pixel_aspect_x, pixel_aspect_y=render.pixel_aspect_y)
 
-    dof = getattr(cam, "dof", None)
-    if dof is not None and dof.use_dof:
-        warn(f"Camera '{cam_ob.name}': depth of field is not supported yet and is ignored.")
     if render.use_motion_blur:
-        warn("Motion blur is not supported yet and is ignored.")
+        warn("Motion blur is not supported yet: the image is rendered without it.")
 
     clip_start, clip_end = float(cam.clip_start), float(cam.clip_end)
     if not (math.isfinite(clip_start) and math.isfinite(clip_end) and clip_end > clip_start):
         raise EmberError(f"Camera '{cam_ob.name}' has invalid clipping ({clip_start}, {clip_end}).")
-    return Camera(world_from_camera=world_from_camera_matrix(cam_ob.matrix_world),
-                  window=window, ortho=ortho, clip_start=clip_start, clip_end=clip_end)
+    world_from_camera = world_from_camera_matrix(cam_ob.matrix_world)
+    return Camera(world_from_camera=world_from_camera, window=window, ortho=ortho, clip_start=clip_start,
+                  clip_end=clip_end, **lens_settings(cam_ob, world_from_camera))
+
+
+def lens_settings(cam_ob, world_from_camera) -> dict:
+    """Camera thin-lens fields from Blender's depth of field, as Cycles' blender/camera.cpp
+    reads them: radius = lens / (2 f-stop) in metres (1 / (2 f-stop) for orthographic), the
+    focus distance from the focus object's distance along the view axis when there is one,
+    blades < 3 = a round aperture."""
+    cam = cam_ob.data
+    dof = getattr(cam, "dof", None)
+    if dof is None or not dof.use_dof:
+        return {}
+    fstop = max(float(dof.aperture_fstop), 1e-5)
+    radius = 1.0 / (2.0 * fstop) if cam.type == "ORTHO" else cam.lens * 1e-3 / (2.0 * fstop)
+    focus = float(dof.focus_distance)
+    target = dof.focus_object
+    if target is not None:
+        to_camera = world_from_camera[:3, 3] - np.array(target.matrix_world.translation, np.float64)
+        focus = abs(float(np.dot(world_from_camera[:3, 2], to_camera)))
+    ratio = float(dof.aperture_ratio)
+    if not (math.isfinite(radius) and ratio > 0 and math.isfinite(ratio)):
+        raise EmberError(f"Camera '{cam_ob.name}' has an invalid aperture (f-stop {dof.aperture_fstop}, "
+                         f"ratio {dof.aperture_ratio}).")
+    blades = int(dof.aperture_blades)
+    return dict(aperture_radius=radius, focus_distance=max(focus, 1e-5), blades=blades if blades >= 3 else 0,
+                blade_rotation=float(dof.aperture_rotation), aperture_ratio=ratio)

@@ -27,7 +27,8 @@ import math
 
 import numpy as np
 
-from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN
+from ..scene import (LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY,
+                     RAY_SHADOW, RAY_TRANSMIT)
 
 
 def _unsupported(warn, what: str, name: str) -> None:
@@ -136,7 +137,17 @@ def export_light(ob, matrix_world, warn) -> dict | None:
     light = ob.data
     if not getattr(light, "use_shadow", True):
         _unsupported(warn, "Lights without shadows are not supported; they cast shadows", ob.name)
-    if not (getattr(ob, "visible_diffuse", True) and getattr(ob, "visible_glossy", True)
-            and getattr(ob, "visible_transmission", True)):
-        _unsupported(warn, "Per-ray-type light visibility is not supported; they light everything", ob.name)
-    return light_row(light, ob.name, matrix_world, getattr(ob, "visible_camera", True), warn)
+    row = light_row(light, ob.name, matrix_world, getattr(ob, "visible_camera", True), warn)
+    if row is not None:
+        row["ray_visibility"] = ray_visibility(ob)
+    return row
+
+
+def ray_visibility(ob) -> int:
+    """RAY_* bits of an object's Cycles ray visibility (Object.visible_*)."""
+    bits = 0
+    for prop, bit in (("visible_camera", RAY_CAMERA), ("visible_diffuse", RAY_DIFFUSE), ("visible_glossy", RAY_GLOSSY),
+                      ("visible_transmission", RAY_TRANSMIT), ("visible_shadow", RAY_SHADOW)):
+        if getattr(ob, prop, True):
+            bits |= bit
+    return bits

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import EmberError
-from ..scene import Mesh
+from ..scene import RAY_ALL, Mesh
 
 # A triangle is degenerate when |e1 x e2| <= EPS_SIN * |e1| |e2| (collinear in float32).
 EPS_SIN = 1e-7
@@ -224,15 +224,16 @@ class MeshCollector:
             self._slot_cache[key] = mats
         return mats
 
-    def add(self, ob, matrix_world) -> None:
-        """ob: evaluated MESH object of the current instance; matrix_world: a copy."""
+    def add(self, ob, matrix_world, visibility: int = RAY_ALL) -> None:
+        """ob: evaluated MESH object of the current instance; matrix_world: a copy;
+        visibility: RAY_* bits (+ HOLDOUT) of the object (Mesh.visibility)."""
         data_key = ob.data.as_pointer()
         proto = self._protos.get(data_key, False)
         if proto is False:
             proto = self._protos[data_key] = extract_mesh(ob)
         if proto is None:
             return
-        group = (data_key, self._slots(ob, data_key))
+        group = (data_key, self._slots(ob, data_key), visibility)
         lst = self._groups.get(group)
         if lst is None:
             lst = self._groups[group] = []
@@ -242,7 +243,7 @@ class MeshCollector:
         """(2,3) float64 world bounding box (min, max) of every collected instance, from the
         8 corners of each mesh's local box (for the scene's origin); empty (0,3) if none."""
         lo, hi = [], []
-        for (data_key, _), matrices in self._groups.items():
+        for (data_key, _, _), matrices in self._groups.items():
             proto = self._protos[data_key]
             p = proto.positions[np.all(np.isfinite(proto.positions), axis=1)].astype(np.float64)
             if len(p) == 0:
@@ -265,11 +266,11 @@ class MeshCollector:
         """The world-space triangle soup; with `origin` (3,) the world is shifted so that it
         becomes (0, 0, 0), in float64 before the float32 store (precision far from 0)."""
         shift = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
-        plan = []  # (proto, material lookup, matrices (k,4,4), det (k,))
+        plan = []  # (proto, material lookup, visibility, matrices (k,4,4), det (k,))
         n_vert = n_tri = 0
         dropped = 0
         nonfinite, bad_transform = [], []  # object names
-        for (data_key, mats), matrices in self._groups.items():
+        for (data_key, mats, vis), matrices in self._groups.items():
             proto = self._protos[data_key]
             M = np.array(matrices, np.float64).reshape(-1, 4, 4)
             det = np.linalg.det(M[:, :3, :3])
@@ -285,7 +286,7 @@ class MeshCollector:
                 M, det = M[ok], det[ok]
             if len(M) == 0 or len(proto.triangles) == 0:
                 continue
-            plan.append((proto, mats, M, det))
+            plan.append((proto, mats, vis, M, det))
             n_vert += len(M) * len(proto.positions)
             n_tri += len(M) * len(proto.triangles)
 
@@ -296,10 +297,11 @@ class MeshCollector:
         normals = np.empty((n_tri, 3, 3), np.float32)
         uvs = np.empty((n_tri, 3, 2), np.float32)
         material = np.empty(n_tri, np.int32)
+        visibility = np.empty(n_tri, np.uint8)
 
         default = None
         v0 = t0 = 0
-        for gi, (proto, mats, M, det) in enumerate(plan):
+        for gi, (proto, mats, vis, M, det) in enumerate(plan):
             check()
             report(f"Export: meshes {gi + 1}/{len(plan)}")
             V, T = len(proto.positions), len(proto.triangles)
@@ -340,6 +342,7 @@ class MeshCollector:
                 normals[t0:t0 + k * T] = N.reshape(-1, 3, 3)
                 uvs[t0:t0 + k * T] = np.where(neg[:, None, None, None], flipped_uvs[None], proto.uvs[None]).reshape(-1, 3, 2)
                 material[t0:t0 + k * T] = np.tile(mat_local, k)
+                visibility[t0:t0 + k * T] = vis
                 v0 += k * V
                 t0 += k * T
         if dropped:
@@ -352,4 +355,6 @@ class MeshCollector:
                     group(what, name)
                 else:
                     self._warn(f"{what}: '{name}'.")
-        return Mesh(vertices=vertices, triangles=triangles, normals=normals, material=material, uvs=uvs)
+        everything = bool(np.all(visibility == RAY_ALL))  # the common case: no array to carry
+        return Mesh(vertices=vertices, triangles=triangles, normals=normals, material=material, uvs=uvs,
+                    visibility=None if everything else visibility)

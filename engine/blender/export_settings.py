@@ -16,14 +16,16 @@ from ..parallel.workers import available_cores
 from ..rng import PATTERNS
 from ..integrators import NAMES as INTEGRATORS
 from ..scene import FILTERS, Settings
-from ..validation import icache_problems, photon_problems, sample_offset_problems
+from ..validation import icache_problems, light_path_problems, photon_problems, sample_offset_problems
 
 _DEFAULTS = Settings()
 
 # scene.ember field -> Settings field (same name); read with getattr so plain bpy works.
 _EMBER_FIELDS = ("samples", "sample_offset", "max_depth", "seed", "time_limit", "noise_target", "batch_size",
                  "photons", "caustic_photons", "photon_k", "global_radius", "caustic_radius", "gather_rays",
-                 "radiance_photons", "ppm_radius", "ppm_alpha", "icache_rays", "icache_a", "icache_gradients")
+                 "radiance_photons", "ppm_radius", "ppm_alpha", "icache_rays", "icache_a", "icache_gradients",
+                 "diffuse_bounces", "glossy_bounces", "transmission_bounces", "transparent_bounces",
+                 "caustics_reflective", "caustics_refractive", "clamp_direct", "clamp_indirect", "filter_glossy")
 _INTEGRATOR_ENUM = {name.upper(): name for name in INTEGRATORS}  # UI enum id -> registry name
 
 
@@ -152,4 +154,7 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
     problems = sample_offset_problems(settings)
     if problems:
         raise EmberError(problems[0][0].upper() + problems[0][1:] + ".")
+    problems = light_path_problems(settings)
+    if problems:
+        raise EmberError("Invalid light path settings: " + "; ".join(problems) + ".")
     return settings

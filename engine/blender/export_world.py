@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene import ENV_PROJECTIONS, World
+from ..scene import ENV_PROJECTIONS, RAY_ALL, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, World
 from ..textures import srgb_to_linear
 from .export_material import find_output, follow_link, rgb
 
@@ -206,6 +206,9 @@ def export_world(depsgraph, scene, warn) -> World:
     fields = _world_fields(world, warn)
     vis = getattr(world, "cycles_visibility", None)
     visible = bool(getattr(vis, "camera", True)) and not scene.render.film_transparent
-    if vis is not None and not (vis.diffuse and vis.glossy and vis.transmission):
-        warn(f"World '{world.name}': per-ray-type visibility is not supported; it lights everything.")
-    return World(visible=visible, **fields)
+    bits = RAY_ALL
+    if vis is not None:
+        for prop, bit in (("diffuse", RAY_DIFFUSE), ("glossy", RAY_GLOSSY), ("transmission", RAY_TRANSMIT)):
+            if not getattr(vis, prop, True):
+                bits &= ~bit
+    return World(visible=visible, ray_visibility=bits, **fields)

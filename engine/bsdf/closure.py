@@ -29,7 +29,7 @@ import numpy as np
 
 from .. import sampling, textures
 from ..scene import (FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET,
-                     LOBE_PHONG, LOBE_TRANSPARENT, Scene)
+                     LOBE_PHONG, LOBE_TRANSPARENT, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, Scene)
 from ..vec import dot, gatherer, max3, normalize, scale, take
 from . import dielectric, diffuse, fresnel, layering, microfacet, phong
 
@@ -38,6 +38,17 @@ from . import dielectric, diffuse, fresnel, layering, microfacet, phong
 _MIN_ESTIMATE = 1e-3
 _MIRROR_Z = np.array([1.0, 1.0, -1.0])  # the local frame seen from the other side
 _MIRROR_XY = np.array([-1.0, -1.0, 1.0])  # reflection about the normal
+
+# What kind of bounce a sample is (Cycles' labels as its path_state_next counts them): diffuse
+# or glossy reflection (mirrors count as glossy), transmission (refraction, rough or smooth),
+# transparent pass-through.
+LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT = 0, 1, 2, 3
+# Which lights' visibility (RAY_* bits) a lobe kind answers to in light sampling: a lobe is
+# left out when a light is invisible to all of its kinds (Cycles' _surface_shader_exclude:
+# glass is glossy and transmission, left out only when both are; Phong is diffuse + glossy).
+_LOBE_RAYS = np.zeros(5, np.uint8)
+_LOBE_RAYS[[LOBE_DIFFUSE, LOBE_PHONG, LOBE_MICROFACET, LOBE_DIELECTRIC]] = (
+    RAY_DIFFUSE, RAY_DIFFUSE | RAY_GLOSSY, RAY_GLOSSY, RAY_GLOSSY | RAY_TRANSMIT)
 
 
 @dataclass
@@ -55,6 +66,7 @@ class BSDFSample:
     # weight carries radiance's 1 / eta_rel^2; light particles (photons) carry flux, which
     # does not scale, so they multiply it back (Veach 1997 sec. 5.2; pbrt-v4 TransportMode).
     refraction_eta2: np.ndarray = None
+    label: np.ndarray = None  # (N,) int8 LABEL_* of each sample
 
 
 def _to_local(v: np.ndarray, t: np.ndarray, b: np.ndarray, n: np.ndarray) -> np.ndarray:
@@ -80,9 +92,12 @@ def _ragged(starts: np.ndarray, counts: np.ndarray):
 
 class Closure:
     def __init__(self, scene: Scene, mat: np.ndarray, ns: np.ndarray, ng: np.ndarray, wo: np.ndarray,
-                 prim: np.ndarray, bary: np.ndarray):
+                 prim: np.ndarray, bary: np.ndarray, no_caustics=None, min_alpha=None):
         """mat (N,) material per point; ns, ng (N,3) unit normals on wo's side; wo (N,3) toward
-        the previous vertex; prim (N,) triangles and bary (N,3) barycentrics of the hits."""
+        the previous vertex; prim (N,) triangles and bary (N,3) barycentrics of the hits.
+        no_caustics: None, or (drop_reflection, drop_refraction) (N,) bool each: points whose
+        glossy reflection / refraction is left out (Cycles' caustics toggles).
+        min_alpha: None, or (N,) smallest GGX alpha of glossy and glass lobes (Filter Glossy)."""
         m = scene.materials
         self.m = m
         self.ng, self.wo = ng, wo
@@ -111,6 +126,10 @@ class Closure:
         self.inside = dot(wo, outward) < 0 if outward is not None else np.zeros(n, bool)
 
         self._resolve_parameters(uv)
+        if no_caustics is not None:
+            self._drop_caustics(*no_caustics)
+        if min_alpha is not None:
+            self._blur(min_alpha)
         mu = self.wo_local[point, 2]
         # Lobes under a specular layer keep 1 - its albedo (Cycles' closure layering).
         rows = np.flatnonzero(m.lobe_layer[lobe] >= 0)
@@ -160,6 +179,28 @@ class Closure:
             self.alpha[glossy] = microfacet.alpha_from_roughness(self.roughness[glossy])
             self.pair_delta[glossy] = np.where(kind[glossy] == LOBE_MICROFACET, microfacet.is_delta(self.alpha[glossy]),
                                                dielectric.is_delta(self.alpha[glossy], self.ior[glossy]))
+
+    def _drop_caustics(self, drop_reflection: np.ndarray, drop_refraction: np.ndarray):
+        """Cycles' svm closure setup with caustics off: glossy and metallic closures are not
+        made, Glass keeps a zero reflection or transmission tint, Phong (Ember's) loses ks.
+        Lobes layered under a dropped one stay as they are."""
+        kind, point = self.pair_kind, self.pair_point
+        refl, refr = drop_reflection[point], drop_refraction[point]
+        self.weight[refl & (kind == LOBE_MICROFACET)] = 0.0
+        self.tint[refl & ((kind == LOBE_DIELECTRIC) | (kind == LOBE_PHONG))] = 0.0
+        self.color[refr & (kind == LOBE_DIELECTRIC)] = 0.0
+
+    def _blur(self, min_alpha: np.ndarray):
+        """Cycles' bsdf_microfacet_blur: alpha = max(alpha, min_alpha) for GGX and glass lobes
+        (their albedo estimates keep the authored roughness, as Cycles keeps its energy terms)."""
+        kind = self.pair_kind
+        rows = np.flatnonzero(((kind == LOBE_MICROFACET) | (kind == LOBE_DIELECTRIC))
+                              & (min_alpha[self.pair_point] > self.alpha))
+        if len(rows) == 0:
+            return
+        self.alpha[rows] = min_alpha[self.pair_point[rows]]
+        self.pair_delta[rows] = np.where(kind[rows] == LOBE_MICROFACET, microfacet.is_delta(self.alpha[rows]),
+                                         dielectric.is_delta(self.alpha[rows], self.ior[rows]))
 
     @property
     def n(self) -> int:
@@ -267,14 +308,18 @@ class Closure:
             pdf[r] = np.where(wo[r, 2] > 0, dielectric.pdf_rough(self.alpha[p], self.ior[p], wo_o, wi_o), 0.0)
         return f * take(self.weight, pairs), pdf
 
-    def _mixture(self, rows: np.ndarray, wi: np.ndarray):
-        """f (K,3) and mixture pdf (K,) of the points `rows` (K,) for world directions wi (K,3)."""
+    def _mixture(self, rows: np.ndarray, wi: np.ndarray, visible=None):
+        """f (K,3) and mixture pdf (K,) of the points `rows` (K,) for world directions wi (K,3);
+        visible (K,) RAY_* bits of a light: lobes it does not light are left out."""
         k = len(rows)
         at = gatherer(rows, self.n)
         wi_local = _to_local(wi, at(self.t), at(self.b), at(self.ns))
         # Reflection must stay on the geometric normal's side, refraction must cross it.
         agree = (dot(wi, at(self.ng)) > 0) == (wi_local[:, 2] > 0)
         pairs, owner = self._pairs_of(rows)
+        if visible is not None:
+            lit = (_LOBE_RAYS[self.pair_kind[pairs]] & visible[owner]) != 0
+            pairs, owner = pairs[lit], owner[lit]
         f_pair, pdf_pair = self._eval_pairs(pairs, take(self.wo_local, rows[owner]), take(wi_local, owner))
         pdf_pair = self.pair_select[pairs] * pdf_pair
         if self.single:
@@ -285,9 +330,10 @@ class Closure:
             f, pdf = _sum_by(owner, f_pair, k), np.bincount(owner, pdf_pair, minlength=k)
         return scale(f, agree), np.where(agree, pdf, 0.0)
 
-    def eval(self, wi: np.ndarray, rows: np.ndarray):
-        """f (K,3) and solid-angle pdf (K,) at the points `rows` (K,) for directions wi (K,3)."""
-        return self._mixture(rows, wi)
+    def eval(self, wi: np.ndarray, rows: np.ndarray, visible=None):
+        """f (K,3) and solid-angle pdf (K,) at the points `rows` (K,) for directions wi (K,3);
+        visible (K,) RAY_* bits or None: only lobes of those kinds (a light's visibility)."""
+        return self._mixture(rows, wi, visible)
 
     # --- render passes: the closure split by lobe class (diffuse, glossy, transmission) -------
     def eval_by_class(self, wi: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -363,6 +409,7 @@ class Closure:
         else:
             live, pick, share, u_branch = self._choose_lobes(u_lobe)
         kind = self.pair_kind[pick]
+        label = np.full(n, LABEL_DIFFUSE, np.int8)
         everyone = len(live) == n
         at = gatherer(live, n)
         wo = at(self.wo_local)
@@ -385,8 +432,11 @@ class Closure:
             wi_local[r], _, p_lobe = phong.sample(self.color[p], self.tint[p], self.m.lobe_exponent[self.pair_lobe[p]],
                                                   wo[r], uu[r], u_branch[r])
             kept[r] = p_lobe > 0
+            label[live[r]] = np.where(u_branch[r] < phong.diffuse_probability(self.color[p], self.tint[p]),
+                                      LABEL_DIFFUSE, LABEL_GLOSSY)
         r = np.flatnonzero(kind == LOBE_MICROFACET)
         if len(r):
+            label[live[r]] = LABEL_GLOSSY
             p = pick[r]
             mirror = is_delta[r]
             rs, p_s = r[~mirror], p[~mirror]
@@ -419,10 +469,14 @@ class Closure:
                 wi_o, _, p_lobe = dielectric.sample_rough(self.alpha[ps], self.ior[ps], wo_o[~smooth], uu[rs], u_branch[rs])
                 wi_local[rs] = wi_o * mirror[~smooth]
                 kept[rs] = (p_lobe > 0) & (wo[rs, 2] > 0)
+        r = np.flatnonzero(kind == LOBE_DIELECTRIC)
+        if len(r):
+            label[live[r]] = np.where(wi_local[r, 2] * wo[r, 2] < 0, LABEL_TRANSMIT, LABEL_GLOSSY)
         r = np.flatnonzero(kind == LOBE_TRANSPARENT)
         if len(r):
             wi_local[r] = -wo[r]
             lobe_weight[r] = self.color[pick[r]]
+            label[live[r]] = LABEL_TRANSPARENT
 
         if everyone:
             wi = sampling.to_world(wi_local, self.t, self.b, self.ns)
@@ -458,7 +512,8 @@ class Closure:
         valid = (pdf > 0) & (max3(weight) > 0)
         if eta2 is not None:  # only where the sample crossed the surface
             eta2 = np.where(dot(wi, self.ng) < 0, eta2, 1.0)
-        return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=delta, valid=valid, refraction_eta2=eta2)
+        return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=delta, valid=valid, refraction_eta2=eta2,
+                          label=label)
 
 
 def _lobe_class(kind: np.ndarray, refracted: np.ndarray) -> np.ndarray:
@@ -497,9 +552,11 @@ class LambertClosure:
         self.has_smooth = max3(albedo) > 0
         self.t, self.b = sampling.frame_from_z(ns)
 
-    def eval(self, wi: np.ndarray, rows: np.ndarray):
+    def eval(self, wi: np.ndarray, rows: np.ndarray, visible=None):
         at = gatherer(rows, len(self.ns))
         cos_i = np.where(dot(wi, at(self.ng)) > 0, dot(wi, at(self.ns)), 0.0)
+        if visible is not None:
+            cos_i = np.where((visible & RAY_DIFFUSE) != 0, cos_i, 0.0)
         return diffuse.eval(at(self.albedo), cos_i), diffuse.pdf(cos_i)
 
     def eval_by_class(self, wi: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -519,16 +576,19 @@ class LambertClosure:
         # f cos / pdf = albedo for cosine-weighted sampling of a Lambertian lobe.
         weight = scale(self.albedo, ok)
         pdf = np.where(ok, diffuse.pdf(local[:, 2]), 0.0)
-        return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=np.zeros(len(ok), bool), valid=ok)
+        return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=np.zeros(len(ok), bool), valid=ok,
+                          label=np.full(len(ok), LABEL_DIFFUSE, np.int8))
 
 
-def make_closure(scene: Scene, lambert_albedo: np.ndarray, mat, ns, ng, wo, prim, bary):
+def make_closure(scene: Scene, lambert_albedo: np.ndarray, mat, ns, ng, wo, prim, bary, no_caustics=None,
+                 min_alpha=None):
     """LambertClosure when every point's material is plain Lambertian, else the general Closure.
-    lambert_albedo: plain_lambert_albedo(scene.materials), computed once per render."""
+    lambert_albedo: plain_lambert_albedo(scene.materials), computed once per render;
+    no_caustics, min_alpha: see Closure (nothing to drop or blur in a Lambertian)."""
     albedo = take(lambert_albedo, mat)
     if not np.isnan(albedo).any():
         return LambertClosure(albedo, ns, ng)
-    return Closure(scene, mat, ns, ng, wo, prim, bary)
+    return Closure(scene, mat, ns, ng, wo, prim, bary, no_caustics, min_alpha)
 
 
 def _valid_reflection_normal(ng: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:

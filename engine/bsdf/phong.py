@@ -69,6 +69,11 @@ def pdf(kd, ks, n, wo, wi):
     return np.where(_both_above(wo, wi), p, 0.0)
 
 
+def diffuse_probability(kd, ks):
+    """(N,) probability that sample() takes its diffuse lobe (u_lobe below it)."""
+    return _lobe_probabilities(kd, ks)[0]
+
+
 def sample(kd, ks, n, wo, u, u_lobe):
     """Sample wi: returns (wi (N,3), weight (N,3) = f cos_i / pdf, pdf (N,) the mixture).
 

@@ -23,12 +23,14 @@ from ..vec import dot, gatherer, max3, scale, take
 
 from .. import camera as camera_mod
 from ..accel import Accel, offset_origin
-from ..bsdf.closure import make_closure, plain_lambert_albedo
+from ..bsdf.closure import (LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT, make_closure,
+                            plain_lambert_albedo)
 from ..errors import Cancelled
 from ..lights.light_set import LightSet
 from ..rng import Sampler
-from ..scene import Scene
+from ..scene import LOBE_TRANSPARENT, RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, Scene
 from .. import passes as passes_mod
+from ..visibility import RayVisibility
 from .base import Integrator, Stage
 from .light_passes import LightTally
 from .surface import flat_normals, shading_frame, towards
@@ -65,12 +67,31 @@ class PathTracer:
         # full (use_mis False), "light" alone drops it after non-delta bounces.
         self.bsdf_hits = strategy in ("mis", "bsdf")
         self.mis = strategy == "mis"
+        st = scene.settings
+        self.limits = np.zeros(4, np.int64)  # per LABEL_*
+        self.limits[[LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT]] = (
+            st.diffuse_bounces, st.glossy_bounces, st.transmission_bounces, st.transparent_bounces)
+        self.has_transparent = np.zeros(len(scene.materials.kind), bool)  # may pass a path at its last vertex
+        self.has_transparent[scene.materials.lobe_material[scene.materials.lobe_kind == LOBE_TRANSPARENT]] = True
+        self.caustics_reflective, self.caustics_refractive = st.caustics_reflective, st.caustics_refractive
+        self.filter_glossy = st.filter_glossy
+        self.visibility = RayVisibility(accel, scene.mesh)  # objects hidden from some rays
+        # Per-path state only where a scene needs it (see _Bounces).
+        self.any_transparent = bool(self.has_transparent.any())
+        self.counted = bool(np.any(self.limits[[LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT]] < self.max_depth)
+                            or self.any_transparent)
+        self.ray_kinds = bool(lights.partial_visibility or not self.visibility.trivial or self.any_transparent
+                              or not (st.caustics_reflective and st.caustics_refractive))
+        # (direct, indirect) clamping limits on |R|+|G|+|B| (Cycles stores 3 x the UI value), None = off.
+        self.clamp = None
+        if st.clamp_direct > 0 or st.clamp_indirect > 0:
+            self.clamp = tuple(3.0 * v if v > 0 else np.inf for v in (st.clamp_direct, st.clamp_indirect))
 
     def render(self, sampler, px: np.ndarray, py: np.ndarray, stop=None, tally=None) -> np.ndarray:
         """Radiance estimates (N,3), one path per pixel (px, py). Raises Cancelled if stop is set.
         tally: a LightTally that files the radiance into light passes, or None."""
         s = self.scene
-        o64, d, tmax = camera_mod.generate_rays(s.camera, s.settings, px, py, sampler.get(0, None, 2))
+        o64, d, tmax = camera_mod.camera_rays(s.camera, s.settings, px, py, sampler)
         return self.trace(sampler, o64, o64.astype(np.float32), d, tmax, np.full(len(px), -1, np.int64), stop,
                           tally=tally)
 
@@ -91,20 +112,26 @@ class PathTracer:
         no_mis = np.ones(n, bool)  # camera ray: emitters seen with weight 1
         mesh = self.scene.mesh
         max_depth = self.max_depth if max_depth is None else max_depth
-        for depth in range(max_depth + 1):
+        bounces = _Bounces.start(n, max_depth, self.any_transparent, self.counted, self.ray_kinds,
+                                 self.filter_glossy > 0)
+        for depth in range(max_depth + self.limits[LABEL_TRANSPARENT] + 1):
             if stop is not None and stop.is_set():
                 raise Cancelled()
             if len(idx) == 0:
                 break
             base = 1 + _GROUPS * depth
-            hit = self.accel.intersect(o32, d, tmax, skip)
+            kind = bounces.ray  # None when no visibility or caustics toggle needs it
+            hit = self.visibility.intersect(o32, d, tmax, skip, kind)
             if depth == 0 and t_first is not None:
                 t_first[:] = np.where(hit.prim >= 0, hit.t, np.inf)
-            camera_ray = np.full(len(idx), depth == 0)
+            camera_ray = kind == RAY_CAMERA if kind is not None else np.full(len(idx), depth == 0)
             emission = first_emission or depth > 0
+            # Emission found by this ray is "direct" for clamping after at most one bounce.
+            direct = bounces.total <= 1 if self.clamp is not None else None
             # Light objects the ray passes on its way (they do not stop it).
             if len(self.lights.hittable) and emission:
-                c = beta * self.lights.emission_along(o64, d, hit.t, pdf_prev, ~no_mis, camera_ray)
+                c = beta * self.lights.emission_along(o64, d, hit.t, pdf_prev, ~no_mis, camera_ray, kind)
+                c = self._clamp(c, direct)
                 _accumulate(L, idx, c)
                 if tally:
                     tally.emitted(depth, idx, c)
@@ -112,7 +139,9 @@ class PathTracer:
             missed = hit.prim < 0
             if missed.any() and self.lights.sees_escaped and emission:
                 r = np.flatnonzero(missed)
-                c = take(beta, r) * self.lights.escaped(take(d, r), pdf_prev[r], ~no_mis[r], camera_ray[r])
+                c = take(beta, r) * self.lights.escaped(take(d, r), pdf_prev[r], ~no_mis[r], camera_ray[r],
+                                                        None if kind is None else kind[r])
+                c = self._clamp(c, direct, r)
                 _accumulate(L, idx[r], c)
                 if tally:
                     tally.emitted(depth, idx[r], c, escaped=True)
@@ -122,6 +151,7 @@ class PathTracer:
             o_prev = o64  # previous vertices, indexed through `keep` where needed
             idx, pdf_prev, no_mis, hit_t, prim = idx[keep], pdf_prev[keep], no_mis[keep], hit.t[keep], hit.prim[keep]
             beta, hit_p, d, bary, ng = (take(a, keep) for a in (beta, hit.p, d, hit.b, hit.ng))
+            bounces = bounces.take(keep)
             mat = mesh.material[prim]
             # Emissive triangles hit by the ray.
             emits = self.emissive_material[mat]
@@ -131,16 +161,29 @@ class PathTracer:
                 cos_l = np.abs(dot(take(d, r), take(ng, r)))
                 pdf_light = self.lights.pdf_triangle_hit(prim[r], take(o_prev, keep[r]), hit_t[r], cos_l)
                 w = np.where(no_mis[r], 1.0, pdf_prev[r] / np.maximum(pdf_prev[r] + pdf_light, 1e-300))
-                c = take(beta, r) * scale(Le, w)
+                c = self._clamp(take(beta, r) * scale(Le, w), bounces.total <= 1, r)
                 _accumulate(L, idx[r], c)
                 if tally:
                     tally.emitted(depth, idx[r], c)
-            if depth == max_depth:
-                break
+            # A path past a bounce limit ends at this vertex, except through transparent
+            # surfaces when the limit was not the transparent one (Cycles' path_state_next).
+            ends = bounces.last & ~self.has_transparent[mat] if self.any_transparent else bounces.last
+            if bounces.stop is not None:
+                ends |= bounces.stop
+            if self.visibility.holdout is not None:  # camera rays end black on holdout objects
+                ends |= self.visibility.holdout[prim] & (bounces.ray == RAY_CAMERA)
+            if ends.any():
+                keep = np.flatnonzero(~ends)
+                if len(keep) == 0:
+                    break
+                idx, pdf_prev, no_mis, prim, mat = idx[keep], pdf_prev[keep], no_mis[keep], prim[keep], mat[keep]
+                beta, hit_p, d, bary, ng = (take(a, keep) for a in (beta, hit_p, d, bary, ng))
+                bounces = bounces.take(keep)
             # Shading frame, flipped to the side the ray came from (two-sided, like Cycles).
             wo = -d
             ng_f, ns = shading_frame(mesh, self.flat_normal, prim, bary, ng, wo)
-            bsdf = make_closure(self.scene, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary)
+            bsdf = make_closure(self.scene, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary,
+                                self._no_caustics(bounces), self._blur(bounces))
             ns = bsdf.ns  # may be perturbed (normal maps)
             if tally and depth == 0:
                 tally.first_hit(idx, bsdf)
@@ -148,12 +191,12 @@ class PathTracer:
             q = np.minimum(1.0, albedo) if depth >= self.rr_depth else np.ones(len(idx))
             m = len(idx)
             # Next-event estimation at points whose BSDF has a non-delta part.
-            active = np.flatnonzero(bsdf.has_smooth)
+            active = np.flatnonzero(bsdf.has_smooth & ~bounces.last if self.any_transparent else bsdf.has_smooth)
             if len(active) and self.use_nee and not self.lights.empty:
                 at = gatherer(active, m)
                 u_light = sampler.get(base + _LIGHT, idx[active], 3)
                 ls = self.lights.sample(at(hit_p), u_light[:, 2], u_light[:, :2])
-                f, pdf_b = bsdf.eval(ls.wi, active)
+                f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility)
                 cos_i = np.abs(dot(ls.wi, at(ns)))
                 pdf_b_mis = q[active] * pdf_b if self.mis else 0.0
                 w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_b_mis, 1e-300))
@@ -163,22 +206,26 @@ class PathTracer:
                 if len(test):
                     rows = active[test]
                     o_shadow = offset_origin(take(hit_p, rows), towards(take(ng_f, rows), take(ls.wi, test)))
-                    blocked = self.accel.occluded(o_shadow, take(ls.target, test), prim[rows], ls.target_prim[test])
+                    blocked = self.visibility.occluded(o_shadow, take(ls.target, test), prim[rows], ls.target_prim[test])
                     lit = np.flatnonzero(~blocked)
-                    _accumulate(L, idx[rows[lit]], take(contrib, test[lit]))
+                    c = self._clamp(take(contrib, test[lit]), bounces.total == 0, rows[lit])
+                    _accumulate(L, idx[rows[lit]], c)
                     if tally:
                         f_cls = bsdf.eval_by_class(take(ls.wi, test[lit]), rows[lit]) if depth == 0 else None
-                        tally.light_sample(depth, idx[rows[lit]], take(contrib, test[lit]), f_cls)
+                        tally.light_sample(depth, idx[rows[lit]], c, f_cls)
             # BSDF sampling continues the path; Russian roulette with survival q.
             u_bsdf = sampler.get(base + _BSDF, idx, 4)
             bs = bsdf.sample(u_bsdf[:, :2], u_bsdf[:, 2])
             if tally and depth == 0:
                 tally.first_bounce(idx, bsdf, bs)
             survive = bs.valid & (u_bsdf[:, 3] < q)
+            if self.any_transparent:  # a path at its last vertex goes on only through transparency
+                survive &= ~bounces.last | (bs.label == LABEL_TRANSPARENT)
             beta = beta * scale(bs.weight, np.divide(1.0, q, out=np.zeros(m), where=survive))
             survive &= max3(beta) > 0
             keep = np.flatnonzero(survive)
             idx, beta, d = idx[keep], take(beta, keep), take(bs.wi, keep)
+            bounces = bounces.take(keep).count(bs, keep, self.limits, max_depth)
             # Strategy switches: pdf_prev 0 makes emission found after a non-delta bounce weigh 0
             # ("light" alone); no_mis makes it weigh 1 (after delta bounces, or "bsdf" alone).
             pdf_prev = (q * bs.pdf)[keep] if self.bsdf_hits else np.zeros(len(keep))
@@ -188,6 +235,91 @@ class PathTracer:
             skip = prim[keep]
             tmax = None
         return np.ascontiguousarray(L.T)
+
+    def _clamp(self, c: np.ndarray, direct: np.ndarray, rows=None) -> np.ndarray:
+        """Contributions c (K,3) clamped as Cycles' film_clamp_light: where |R|+|G|+|B| exceeds
+        3 x the limit (clamp_direct where `direct` (K,) (or direct[rows]), else clamp_indirect;
+        0 = none), c is scaled to it (hue kept)."""
+        if self.clamp is None:
+            return c
+        limit = np.where(direct if rows is None or np.ndim(direct) == 0 else direct[rows], *self.clamp)
+        total = np.abs(c).sum(axis=1)
+        over = total > limit
+        if not over.any():
+            return c
+        return scale(c, np.where(over, limit / np.where(over, total, 1.0), 1.0))
+
+    def _blur(self, bounces):
+        """Filter Glossy (Cycles' surface_shader.h): GGX alpha at least sqrt(1 - p) / 2 with
+        p = min_ray_pdf / filter_glossy where p < 1, or None when off."""
+        if not self.filter_glossy > 0:
+            return None
+        p = bounces.min_pdf / self.filter_glossy
+        return np.where(p < 1.0, 0.5 * np.sqrt(np.maximum(1.0 - p, 0.0)), 0.0)
+
+    def _no_caustics(self, bounces):
+        """(drop_reflection, drop_refraction) for the closure, or None with both caustics on."""
+        if self.caustics_reflective and self.caustics_refractive:
+            return None
+        after = bounces.ray == RAY_DIFFUSE  # the last non-transparent bounce was diffuse
+        return (after & (not self.caustics_reflective), after & (not self.caustics_refractive))
+
+
+class _Bounces:
+    """Per-path bounce state as Cycles' path_state_next keeps it. Arrays a scene does not need
+    are None: total (N,) non-transparent bounces so far; last (N,) bool: the path is over a
+    limit, its ray adds the emission it finds and goes on only through transparency
+    (TERMINATE_AFTER_TRANSPARENT); stop (N,) bool: the transparent limit is reached, the next
+    surface is the last (TERMINATE_ON_NEXT_SURFACE; None without transparent materials);
+    counts (N,4) bounces per LABEL_* (None when no per-type limit is below the total); ray (N,)
+    RAY_* kind of the path's ray: camera until the first non-transparent bounce, then that
+    bounce's kind (None when nothing depends on it); min_pdf (N,) the smallest non-delta BSDF
+    pdf so far (Cycles' min_ray_pdf; None without Filter Glossy). When none of these is kept
+    and no surface is transparent, every path has made the same number of bounces: total and
+    last are then scalars (no per-path arrays to carry)."""
+
+    def __init__(self, **arrays):
+        self.__dict__.update(arrays)
+
+    @staticmethod
+    def start(n, max_depth, stop, counts, ray, min_pdf) -> "_Bounces":
+        uniform = not (stop or counts or ray or min_pdf)
+        return _Bounces(total=np.int32(0) if uniform else np.zeros(n, np.int32),
+                        last=np.bool_(max_depth <= 0) if uniform else np.full(n, max_depth <= 0),  # 0: emission only
+                        stop=np.zeros(n, bool) if stop else None,
+                        counts=np.zeros((n, 4), np.int32) if counts else None,
+                        ray=np.full(n, RAY_CAMERA, np.uint8) if ray else None,
+                        min_pdf=np.full(n, np.inf) if min_pdf else None)
+
+    def take(self, rows) -> "_Bounces":
+        return _Bounces(**{k: v if v is None or np.ndim(v) == 0 else v[rows] for k, v in vars(self).items()})
+
+    def count(self, bs, rows, limits: np.ndarray, max_depth: int) -> "_Bounces":
+        """The state after the bounce sampled in bs (BSDFSample) at rows (N,); limits (4,)."""
+        if self.counts is None and self.ray is None and self.min_pdf is None:  # every bounce counts alike
+            self.total = self.total + 1  # scalars or arrays alike
+            self.last = self.last | (self.total >= max_depth)
+            return self
+        label = bs.label[rows]
+        see_through = label == LABEL_TRANSPARENT
+        self.total += ~see_through
+        over = self.total >= max_depth
+        if self.counts is not None:
+            i = np.arange(len(label))
+            self.counts[i, label] += 1
+            reached = self.counts[i, label] >= limits[label]
+            over |= reached
+            if self.stop is not None:  # tracked with counts (transparent materials)
+                self.stop |= see_through & reached
+        self.last |= ~see_through & over
+        if self.ray is not None:
+            self.ray = np.where(see_through, self.ray, _RAY_OF_LABEL[label])
+        if self.min_pdf is not None:
+            self.min_pdf = np.where(bs.delta[rows], self.min_pdf, np.minimum(self.min_pdf, bs.pdf[rows]))
+        return self
+
+
+_RAY_OF_LABEL = np.array([RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, RAY_CAMERA], np.uint8)  # per LABEL_*
 
 
 class PathIntegrator(Integrator):

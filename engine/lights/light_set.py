@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import sampling
-from ..scene import LIGHT_SUN, Lights, Materials, Mesh, World
+from ..scene import LIGHT_SUN, RAY_ALL, RAY_CAMERA, Lights, Materials, Mesh, World
 from ..vec import max3, scale, take
 from . import environment, shapes
 
@@ -52,6 +52,8 @@ class LightSample:
     target_prim: np.ndarray  # (N,) emissive triangle the target lies on, -1 for other lights
     finite: np.ndarray  # (N,) bool
     valid: np.ndarray
+    # (N,) uint8 RAY_* bits of the lights sampled (which lobes they light), None: all lobes.
+    visibility: np.ndarray = None
 
 
 class LightSet:
@@ -91,6 +93,16 @@ class LightSet:
         self.hittable = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind != LIGHT_SUN))
         self.suns = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind == LIGHT_SUN))
         self.sees_escaped = bool(len(self.suns)) or bool(self.world.max() > 0) or self.env is not None
+        # Ray visibility (Cycles' light and world visibility): None where everything sees all.
+        tri_vis = mesh.visibility[self.tri_prim] if mesh.visibility is not None else np.full(len(self.tri_prim), RAY_ALL)
+        vis = np.concatenate([lights.ray_visibility, tri_vis, [world.ray_visibility] if self.env is not None else []
+                              ]).astype(np.int64)
+        lobes = RAY_ALL & ~RAY_CAMERA
+        self.nee_visibility = vis.astype(np.uint8) if np.any((vis & lobes) != lobes) else None
+        self.light_visibility = lights.ray_visibility
+        self.world_visibility = (int(world.ray_visibility) & ~RAY_CAMERA) | (RAY_CAMERA if world.visible else 0)
+        self.partial_visibility = bool(np.any(lights.ray_visibility != lights.ray_visibility | lobes)
+                                       or (self.world_visibility & lobes) != lobes)
 
     @property
     def empty(self) -> bool:
@@ -152,7 +164,8 @@ class LightSet:
         pdf = np.where(delta, pmf, pmf * pdf_dir)
         valid = (pdf > 0) & np.isfinite(pdf) & (max3(np.abs(Le)) > 0)  # negative lights count
         return LightSample(wi=wi, Le=Le, pdf=np.where(valid, pdf, 0.0), delta=delta, target=target,
-                           target_prim=target_prim, finite=finite, valid=valid)
+                           target_prim=target_prim, finite=finite, valid=valid,
+                           visibility=None if self.nee_visibility is None else self.nee_visibility[index])
 
     # ---- emission found by rays (BSDF sampling or camera rays) -----------------------------
     def pdf_triangle_hit(self, prim: np.ndarray, p_prev: np.ndarray, t: np.ndarray, cos_light: np.ndarray):
@@ -164,27 +177,32 @@ class LightSet:
         return np.where(np.isfinite(pdf), pdf, 0.0)
 
     def emission_along(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, pdf_bsdf: np.ndarray,
-                       use_mis: np.ndarray, camera: np.ndarray) -> np.ndarray:
+                       use_mis: np.ndarray, camera: np.ndarray, kind: np.ndarray = None) -> np.ndarray:
         """Radiance (N,3) that rays o + t d, 0 < t < tmax, collect from the finite analytic lights
         they pass through, each weighted by the balance heuristic
         pdf_bsdf / (pdf_bsdf + pdf_light) where use_mis, else 1. camera (N,) bool: camera rays
-        see only lights marked visible."""
+        see only lights marked visible; kind (N,) RAY_* bit of each ray or None: rays see only
+        lights visible to their kind."""
         total = np.zeros((len(o), 3))
         lights = self.lights
         for i in self.hittable.tolist():
             hit, gain, pdf_dir = shapes.hit_analytic(int(lights.kind[i]), lights, i, o, d, tmax)
-            self._add_weighted(total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera)
+            self._add_weighted(total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera, kind)
         return total
 
-    def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray) -> np.ndarray:
+    def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray,
+                kind: np.ndarray = None) -> np.ndarray:
         """Radiance (N,3) for rays leaving the scene along d: suns and the environment map
         (MIS-weighted like `emission_along`), or the constant world (weight 1: it is never
-        light-sampled). Camera rays see the world only if it is visible."""
+        light-sampled). Camera rays see the world only if it is visible; with kind (N,), rays
+        see only what is visible to their kind."""
         total = np.zeros((len(d), 3))
         for i in self.suns.tolist():
             hit, gain, pdf_dir = shapes.sun_hit(self.lights, i, d)
-            self._add_weighted(total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera)
+            self._add_weighted(total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera, kind)
         seen = ~camera | self.world_visible
+        if kind is not None and self.partial_visibility:
+            seen = seen & ((kind & self.world_visibility) != 0)
         if self.env is not None:
             Le = self.env.eval(d)
             w = np.ones(len(d))
@@ -196,10 +214,12 @@ class LightSet:
             total += np.where(seen[:, None], self.world, 0.0)
         return total
 
-    def _add_weighted(self, total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera):
+    def _add_weighted(self, total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera, kind=None):
         """total += gain x Le[i] x MIS weight on the rays that hit light i."""
         if not self.lights.visible[i]:
             hit = hit & ~camera
+        if kind is not None and self.partial_visibility:
+            hit = hit & ((kind & self.light_visibility[i]) != 0)
         if not hit.any():
             return
         pdf_light = self.pmf(np.array([i]))[0] * pdf_dir

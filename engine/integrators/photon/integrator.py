@@ -200,7 +200,7 @@ class PhotonIntegrator(Integrator):
     # --- the camera pass --------------------------------------------------------------------
     def _render(self, sampler, pixel, sample, px, py, stop):
         scene, s, accel, lights = self.scene, self.scene.settings, self.ctx.accel, self.ctx.lights
-        o64, d, tmax = camera_mod.generate_rays(scene.camera, s, px, py, sampler.get(0, None, 2))
+        o64, d, tmax = camera_mod.camera_rays(scene.camera, s, px, py, sampler)
         n = len(px)
         L = np.zeros((3, n))
         # The Caustics render pass: the caustic map's term alone (same layout as L).
