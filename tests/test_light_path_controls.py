@@ -236,3 +236,29 @@ def test_filter_glossy_blurs_mirrors_after_rough_bounces_only():
     np.testing.assert_allclose(c.alpha[1], 0.5 * np.sqrt(0.75))
     tracer.filter_glossy = 0.0
     assert tracer._blur(b) is None
+
+
+def test_holdout_is_black_and_transparent_camera_hidden_objects_are_not_seen():
+    """Camera rays see a holdout as a hole (black, alpha 0 on a transparent film, as Cycles);
+    an object hidden from camera rays is looked through (the emitter behind it is seen)."""
+    import dataclasses
+
+    from ember.engine.scene import HOLDOUT, RAY_ALL, RAY_CAMERA
+
+    front = [[-5, 1, -5], [-5, 1, 5], [5, 1, 5], [5, 1, -5]]
+    back = [[-5, 2, -5], [-5, 2, 5], [5, 2, 5], [5, 2, -5]]
+    mesh = quads_mesh([front, back], [0, 1])
+    mats = Materials.make([dict(kind=MAT_DIFFUSE, base_color=(0.5, 0.5, 0.5)),
+                           dict(kind=MAT_EMISSION_ONLY, base_color=(0, 0, 0), emission=(1.0, 1.0, 1.0))])
+    scene = Scene(mesh, mats, Lights.make([]), World(), perspective((0, 0, 0), (0, 1, 0), 30),
+                  settings(samples=2, film_transparent=True))
+    vis = np.array([RAY_ALL | HOLDOUT] * 2 + [RAY_ALL] * 2, np.uint8)  # the front sheet a holdout
+    session = RenderSession(scene.replace(mesh=dataclasses.replace(mesh, visibility=vis)))
+    session.run()
+    rgba = session.film.image()
+    assert np.all(rgba[..., :3] == 0) and np.all(rgba[..., 3] == 0)
+    vis = np.array([RAY_ALL & ~RAY_CAMERA] * 2 + [RAY_ALL] * 2, np.uint8)  # the front sheet hidden from the camera
+    session = RenderSession(scene.replace(mesh=dataclasses.replace(mesh, visibility=vis)))
+    session.run()
+    rgba = session.film.image()
+    assert np.allclose(rgba[..., :3], 1.0) and np.all(rgba[..., 3] == 1)

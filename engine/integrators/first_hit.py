@@ -12,8 +12,9 @@ import numpy as np
 from .. import camera as camera_mod
 from .. import passes as passes_mod
 from ..bsdf.closure import make_closure, plain_lambert_albedo
-from ..scene import Scene
+from ..scene import RAY_CAMERA, Scene
 from ..vec import take
+from ..visibility import RayVisibility
 from .surface import flat_normals, shading_frame
 
 
@@ -23,6 +24,8 @@ class FirstHit:
         self.scene, self.accel = scene, accel
         self.wanted = tuple(n for n in s.passes if n in passes_mod.HIT)
         self.alpha = s.film_transparent
+        # Objects hidden from camera rays, holdouts (Cycles: alpha 0 there): only when the scene has them.
+        self.visibility = RayVisibility(accel, scene.mesh) if scene.mesh.visibility is not None else None
         self.lambert_albedo = plain_lambert_albedo(scene.materials)
         self.flat_normal = flat_normals(scene.mesh)
         m = np.asarray(scene.camera.world_from_camera, np.float64)
@@ -35,12 +38,19 @@ class FirstHit:
     def passes(self, sampler, px: np.ndarray, py: np.ndarray) -> dict:
         """name -> (N, channels) for the paths of one batch (pixels px, py)."""
         s, n = self.scene.settings, len(px)
-        o64, d, tmax = camera_mod.generate_rays(self.scene.camera, s, px, py, sampler.get(0, None, 2))
-        hit = self.accel.intersect(o64.astype(np.float32), d, tmax, np.full(n, -1, np.int64))
+        o64, d, tmax = camera_mod.camera_rays(self.scene.camera, s, px, py, sampler)  # the lens too
+        if self.visibility is None:
+            hit = self.accel.intersect(o64.astype(np.float32), d, tmax, np.full(n, -1, np.int64))
+        else:
+            hit = self.visibility.intersect(o64.astype(np.float32), d, tmax, np.full(n, -1, np.int64),
+                                            np.full(n, RAY_CAMERA, np.uint8))
         found = hit.prim >= 0
         out = {}
         if self.alpha:
-            out["alpha"] = found.astype(np.float64)[:, None]
+            opaque = found
+            if self.visibility is not None and self.visibility.holdout is not None:
+                opaque = found & ~self.visibility.holdout[np.maximum(hit.prim, 0)]
+            out["alpha"] = opaque.astype(np.float64)[:, None]
         if not self.wanted:
             return out
         rows = np.flatnonzero(found)
