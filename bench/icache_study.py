@@ -260,14 +260,22 @@ def part_brute(R, args, out, name, res):
             rows.append(f)
             print(f"  {label} {spp} spp: relMSE {f['relmse_corrected']:.2e} (corrected), cpu {f['cpu_s']:.1f} s, "
                   f"wall {f['wall_s']:.1f} s, load {f['load'][0]:.1f}", flush=True)
-        b, c = rows[-2], rows[-1]
-        if b["photons"] != c["photons"] or b["photons"] != cf["photons"]:
-            print(f"  warning: photon maps differ: {b['photons']} / {c['photons']} / {cf['photons']}", flush=True)
-        c["error_ratio"] = c["relmse_corrected"] / b["relmse_corrected"]
-        c["time_ratio_cpu"] = c["cpu_s"] / b["cpu_s"]
-        c["time_ratio_wall"] = c["wall_s"] / b["wall_s"]
-        c["time_ratio_no_photons"] = ((c["wall_s"] - c["photon_map_s"]) / (b["wall_s"] - b["photon_map_s"]))
-        c["target_met"] = bool(c["error_ratio"] <= 1.2 and c["time_ratio_cpu"] <= 0.1)
+        for rays in args.extra_rays:  # more rays per record (brute force keeps args.rays)
+            img, f, _ = R.render(name, args.small, samples=spp, **{**_indirect_cache(args), "icache_rays": rays})
+            f.update(label=f"icache, {rays} rays per record", **_against(img, ref, cf["own_relmse"]))
+            f["photon_map_s"] = f["stage_seconds"].get("photons", 0.0)
+            f["photons"] = f["counters"].get("photons")
+            rows.append(f)
+        b = next(f for f in rows if f["label"] == "brute force" and f["samples"] == spp)
+        for c in rows[rows.index(b) + 1:]:
+            if b["photons"] != c["photons"] or b["photons"] != cf["photons"]:
+                print(f"  warning: photon maps differ: {b['photons']} / {c['photons']} / {cf['photons']}", flush=True)
+            c["error_ratio"] = c["relmse_corrected"] / b["relmse_corrected"]
+            c["time_ratio_cpu"] = c["cpu_s"] / b["cpu_s"]
+            c["time_ratio_wall"] = c["wall_s"] / b["wall_s"]
+            c["target_met"] = bool(c["error_ratio"] <= 1.2 and c["time_ratio_cpu"] <= 0.1)
+            print(f"  {c['label']} {spp} spp: relMSE {c['relmse_corrected']:.2e}, {c['error_ratio']:.2f}x brute force "
+                  f"in {c['time_ratio_cpu']:.3f}x its CPU time", flush=True)
     res["brute"][name] = {"converged": cf, "rows": rows}
 
 
@@ -283,8 +291,8 @@ def part_gradients(R, args, out, name, res):
                 d[grad] = {**f, **_against(img, ref, cf["own_relmse"])}
             else:
                 cyc, own, path = R.cycles_reference(name, args.res)
-                img, f, integ = R.render(name, args.res, samples=args.spp, icache_gradients=grad, integrator="icache",
-                                         threads=0)
+                img, f, integ = R.render(name, args.res, samples=args.spp, icache_gradients=grad, icache_a=0.2,
+                                         icache_weight="ward", integrator="icache", threads=0)
                 d[grad] = {**f, **_against(img, cyc, own), "reference": path, "reference_own_relmse": own}
             recs[grad] = integ.records.position
             print(f"  {key}, gradients {grad}: {f['records']} records, relMSE {d[grad]['relmse_corrected']:.2e}",
@@ -304,7 +312,8 @@ def part_accuracy(R, args, out, name, res):
                 f.update(a=a, **_against(img, ref, cf["own_relmse"]))
             else:
                 cyc, own, path = R.cycles_reference(name, args.res)
-                img, f, _ = R.render(name, args.res, samples=args.spp, icache_a=a, integrator="icache", threads=0)
+                img, f, _ = R.render(name, args.res, samples=args.spp, icache_gradients=True, icache_a=a,
+                                     icache_weight="ward", integrator="icache", threads=0)
                 f.update(a=a, **_against(img, cyc, own), reference=path, reference_own_relmse=own)
             rows.append(f)
             print(f"  {key}, a = {a}: {f['records']} records, relMSE {f['relmse_corrected']:.2e}, stages {_stages(f)}",
@@ -326,8 +335,11 @@ def part_weights(R, args, out, name, res):
                         f.update(_against(img, ref, cf["own_relmse"]))
                     else:
                         cyc, own, path = R.cycles_reference(name, args.res)
-                        img, f, _ = R.render(name, args.res, samples=args.weights_spp, icache_weight=place,
-                                             variant=interp, integrator="icache", threads=1)
+                        # the patch needs the tracing side in this process; without it, both cores
+                        swap = place != interp
+                        img, f, _ = R.render(name, args.res, samples=args.weights_spp, icache_gradients=True,
+                                             icache_a=0.2, icache_weight=place, variant=interp if swap else "",
+                                             integrator="icache", threads=1 if swap else 0)
                         f.update(_against(img, cyc, own), reference=path, reference_own_relmse=own)
                 f.update(placed_with=place, interpolated_with=interp)
                 rows.append(f)
@@ -504,6 +516,7 @@ def parse_args(argv):
     ap.add_argument("--brute-spp", default="1,4", help="samples of the brute-force comparison (comma-separated)")
     ap.add_argument("--converged-spp", type=int, default=8, help="samples of each converged half")
     ap.add_argument("--weights-spp", type=int, default=16, help="samples of part weights' full images (0: none)")
+    ap.add_argument("--extra-rays", default="", help="part brute: extra icache rows with these rays per record")
     ap.add_argument("--rays", type=int, default=392, help="gather rays per record and per brute-force sample")
     ap.add_argument("--images", default="small,full",
                     help="parts gradients, accuracy, weights: the indirect term at --small ('small'), the full "
@@ -514,6 +527,7 @@ def parse_args(argv):
     args = ap.parse_args(argv)
     args.brute_spp = [int(v) for v in args.brute_spp.split(",")]
     args.images = [v.strip() for v in args.images.split(",")]
+    args.extra_rays = [int(v) for v in args.extra_rays.split(",") if v.strip()]
     return args
 
 
