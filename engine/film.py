@@ -10,6 +10,12 @@ error of the M-pass mean for any sample pattern - Sobol's aligned blocks of 2^k 
 each a well-stratified net, while the sample variance ignores that stratification and
 overstates Sobol's error (3x in variance at 64 passes). Between powers of two the estimate
 is scaled by sqrt(M / N), the slowest (independent-sample) rate.
+
+With adaptive sampling pixels have different sample counts, so the blocks of passes do not
+line up; the film then also keeps twice the sum of each pixel's class-A samples (half of
+every aligned block of four, engine/adaptive.py), and |2 sum_A - sum| / n, the half-difference
+of the two half-buffers' means, is each pixel's error estimate (Cycles' adaptive sampling
+uses the same buffer).
 """
 from __future__ import annotations
 
@@ -21,9 +27,11 @@ from . import passes as passes_mod
 
 
 class Film:
-    def __init__(self, width: int, height: int, passes: tuple = (), transparent: bool = False):
+    def __init__(self, width: int, height: int, passes: tuple = (), transparent: bool = False,
+                 adaptive: bool = False):
         """passes: render pass names (engine/passes.py) besides Combined; transparent: alpha is
-        the mean of the samples' "alpha" (film transparency), else 1 where sampled."""
+        the mean of the samples' "alpha" (film transparency), else 1 where sampled; adaptive:
+        keep the class-A half buffer (adaptive sampling)."""
         self.width, self.height = width, height
         # Per-pass running sums (H*W, channels) of what the samples return under that name;
         # debug passes are derived from the radiance sums.
@@ -43,11 +51,12 @@ class Film:
         # (H*W,3) radiance added to the mean (an integrator's term that is not a mean of
         # samples: progressive photon mapping's photon estimate), or None.
         self.overlay = None
+        self.sum_a = np.zeros((height * width, 3)) if adaptive else None  # 2 x sum of class-A samples
 
-    def add(self, pixel: np.ndarray, L: np.ndarray, passes: dict | None = None) -> None:
+    def add(self, pixel: np.ndarray, L: np.ndarray, passes: dict | None = None, class_a: bool = False) -> None:
         """Add one sample per entry; pixel (N,) flat indices (unique within one call); passes:
         name -> (N, channels) values of the same samples (names the film does not keep are
-        ignored)."""
+        ignored); class_a: the samples are of class A (adaptive.class_a of their pass)."""
         finite = np.isfinite(L)
         bad = 0
         if not finite.all():
@@ -67,6 +76,8 @@ class Film:
                 acc = self.pass_sum.get(name)
                 if acc is not None:
                     acc[pixel] += np.where(np.isfinite(values), values, 0.0).reshape(len(L), -1)
+            if class_a and self.sum_a is not None:
+                self.sum_a[pixel] += 2.0 * L
 
     def mean(self) -> np.ndarray:
         """(H,W,3) float64 mean radiance (0 where no samples)."""
@@ -139,6 +150,11 @@ class Film:
         """Relative noise estimate of the image: RMS over pixels of the estimated error of the
         mean over (mean + 0.01). From blocks of passes (see the module docstring) once four
         passes are complete, before that from the sample variance within each pixel."""
+        if self.sum_a is not None and self.passes >= 4:
+            with self._lock:
+                n = np.maximum(self.count, 1)[:, None]
+                mean, err = self.sum / n, (self.sum_a - self.sum) / n
+            return _relative_rms(mean, err * err, self.count > 0)
         if self._block_noise is not None and self.passes >= 4:
             m, e = self._block_noise
             return float(e * np.sqrt(m / self.passes))

@@ -493,6 +493,11 @@ class Settings:
     # Cycles' Filter Glossy (0 = off): after rough bounces, glossy lobes get a GGX alpha of at
     # least sqrt(1 - p / filter_glossy) / 2, p the smallest BSDF pdf on the path so far.
     filter_glossy: float = 0.0
+    # Adaptive sampling (engine/adaptive.py, Cycles' semantics): pixels stop once their noise
+    # is below the threshold (0 = automatic from the samples); min samples 0 = automatic.
+    adaptive: bool = False
+    adaptive_threshold: float = 0.01
+    adaptive_min_samples: int = 0
 
     def __post_init__(self):
         if self.border is None:

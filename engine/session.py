@@ -11,7 +11,9 @@ numbers depend only on (seed, domain, stage, item/pixel, sample), so the same se
 same image whatever the timing or the number of workers.
 
 The caller's thread is the only one that calls `on_update` and `should_stop` (Blender's
-API is not thread-safe), at least every `UPDATE_INTERVAL` seconds.
+API is not thread-safe), at least every runner.UPDATE_INTERVAL seconds. Which items start, the
+film's passes and the stops (time limit, noise target, adaptive sampling) are
+engine/runner.py's; this module builds the render, runs the rounds and owns the backends.
 """
 from __future__ import annotations
 
@@ -23,18 +25,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import integrators
-from .errors import Cancelled
 from .film import Film
 from .integrators.base import Stage
 from .parallel import workers
 from .parallel.shared import Publisher
+from .runner import Runner
 from .scene import Scene, recentred
 from . import tracer as tracer_mod
 from .tracer import Tracer
 from .validation import has_light, path_only_warnings, validate
-
-UPDATE_INTERVAL = 0.25
-NOISE_INTERVAL = 1.0
 
 
 @dataclass
@@ -89,7 +88,10 @@ class RenderStats:
 
 
 class RenderSession:
-    def __init__(self, scene: Scene):
+    def __init__(self, scene: Scene, clock=time.perf_counter):
+        """clock: seconds (tests give a fake one); the time limit counts from here."""
+        self.clock = clock
+        self.t_start = clock()
         validate(scene)
         scene = recentred(scene)  # far from the world origin: render about the scene's centre
         t0 = time.perf_counter()
@@ -99,11 +101,15 @@ class RenderSession:
                                  "(its passes are not independent samples of one image); it is ignored.")
             scene = scene.replace(settings=scene.settings.replace(noise_target=0.0))
         self.warnings += path_only_warnings(scene)
+        if scene.settings.adaptive and not integrators.REGISTRY[scene.settings.integrator].adaptive:
+            self.warnings.append(f"Adaptive sampling does not apply to the '{scene.settings.integrator}' integrator "
+                                 "(every pass covers every pixel); it samples uniformly.")
+            scene = scene.replace(settings=scene.settings.replace(adaptive=False))
         self.scene = scene
         s = scene.settings
         self.integrator = integrators.create(scene)  # the render-process side: stages, reduce
         self.layout = self.integrator.layout
-        self.film = Film(s.width, s.height, s.passes, s.film_transparent)
+        self.film = Film(s.width, s.height, s.passes, s.film_transparent, adaptive=s.adaptive)
         cores = s.threads or workers.available_cores()
         # Worker processes pay ~1 s to start; worth it only for renders of several items.
         self.processes = (cores if cores > 1 and self.integrator.work_items() >= 2 * cores and workers.can_spawn()
@@ -123,34 +129,26 @@ class RenderSession:
                                  "the image will be black.")
         self.build_seconds = time.perf_counter() - t0
 
-    def _add(self, stage: Stage, item: int, L: np.ndarray, passes: dict | None = None) -> None:
-        """Add a film item to the film, one pass segment at a time (pixels unique per segment);
-        passes: render-pass name -> (N, channels) values of the same paths."""
-        n_pixels = self.layout.n_pixels
-        k = self.layout.paths(stage, item)
-        cut = 0
-        while cut < len(k):
-            seg_end = min(len(k), cut + n_pixels - k[cut] % n_pixels)
-            self.film.add(self.layout.pixel[k[cut:seg_end] % n_pixels], L[cut:seg_end],
-                          {name: v[cut:seg_end] for name, v in passes.items()} if passes else None)
-            if (k[seg_end - 1] + 1) % n_pixels == 0:  # the segment completed a pass
-                self.film.end_pass(int(k[seg_end - 1] + 1) // n_pixels - self.scene.settings.sample_offset)
-            cut = seg_end
+    def _backend(self, stop: threading.Event):
+        """Where items run: worker processes, or a thread of this process."""
+        if self.processes:
+            return _Processes(self.scene, self.processes)
+        return _InProcess(self.tracer, stop)
 
     def run(self, on_update=None, should_stop=None) -> RenderStats:
         t0 = time.perf_counter()
-        run = _Run(self, on_update, should_stop, t0)
-        if self.processes:
-            backend = _Processes(self.scene, self.processes)
-            builds = backend.builds
-        else:
-            builds = {k: v - self._builds0[0][k] for k, v in tracer_mod.BUILDS.items()}
-            backend = _InProcess(self.tracer, run.stop)
-        publisher = Publisher()
-        self.build_seconds += time.perf_counter() - t0
+        run = Runner(self, on_update, should_stop, self.clock)
+        self.publisher = Publisher()
+        self.version = 0  # of the arrays published to every process
+        backend = None
         completed = False
         try:
-            version, round_ = 0, 0
+            backend = self._backend(run.stop)
+            builds = getattr(backend, "builds", None)  # worker processes report what they built
+            if builds is None:
+                builds = {k: v - self._builds0[0][k] for k, v in tracer_mod.BUILDS.items()}
+            self.build_seconds += time.perf_counter() - t0
+            round_ = 0
             while not run.ended:
                 stages = self.integrator.stages(round_)
                 if not stages:
@@ -163,124 +161,30 @@ class RenderSession:
                         break
                     if stage.publish:
                         arrays = self.integrator.reduce(stage, results)
-                        version += 1
-                        backend.install(version, arrays, publisher)
+                        self.version += 1
+                        backend.install(self.version, arrays, self.publisher)
                     self.film.overlay = self.integrator.overlay()
                     if stage.film and stage.publish:
                         run.report(stage, pass_completed=True)
                 round_ += 1
             completed = True
         finally:
-            backend.close(kill=run.cancelled or run.ended, keep=self.scene.settings.persistent and completed)
-            publisher.release()
-        elapsed = time.perf_counter() - t0
-        stopped_by = ""
-        if run.cancelled:
-            stopped_by = "cancel"
-        elif run.ended:
-            stopped_by = "noise target" if run.noise_reached() else "time limit"
-        noise = self.film.noise() if run.samples_done() else run.noise
-        return RenderStats(samples=run.samples_done(), elapsed=elapsed, rays=run.rays,
+            if backend is not None:
+                backend.close(kill=run.cancelled or run.ended, keep=self.scene.settings.persistent and completed)
+            self.publisher.release()
+        elapsed = self.clock() - self.t_start
+        noise = self.film.noise() if run.passes else run.noise
+        counters = self.integrator.counters()
+        if run.active is not None:
+            left = int((~run.active.converged).sum())
+            counters["adaptive"] = (f"adaptive: {left} of {self.layout.n_pixels} pixels active at the end, "
+                                    f"{self.film.count[self.layout.pixel].mean():.1f} samples per pixel on average")
+        return RenderStats(samples=run.passes, elapsed=elapsed, rays=run.rays,
                            rays_per_second=run.rays / max(elapsed, 1e-9), embree_seconds=run.embree_seconds,
                            build_seconds=self.build_seconds, cancelled=run.cancelled, noise=noise,
-                           nonfinite=self.film.nonfinite, stopped_by=stopped_by, processes=self.processes,
-                           stage_seconds=run.stage_seconds, counters=self.integrator.counters(),
-                           settings=self.scene.settings,
-                           builds=dict(builds, workers=workers.STARTED[0] - self._builds0[1]))
-
-
-class _Run:
-    """The bookkeeping of one RenderSession.run: stops, progress, the film's order."""
-
-    def __init__(self, session: RenderSession, on_update, should_stop, t0: float):
-        self.session, self.on_update, self.should_stop, self.t0 = session, on_update, should_stop, t0
-        self.settings = session.scene.settings
-        self.stop = threading.Event()
-        self.cancelled = False
-        self.ended = False  # stopped before the integrator was done (cancel, time, noise)
-        self.paths_added = self.rays = 0
-        self.embree_seconds = 0.0
-        self.noise, self.noise_time = None, t0
-        self.last_update = t0
-        self.stage_seconds: dict[str, float] = {}
-
-    def samples_done(self) -> int:
-        return self.paths_added // self.session.layout.n_pixels
-
-    def noise_reached(self) -> bool:
-        s = self.settings
-        return s.noise_target > 0 and self.noise is not None and self.noise <= s.noise_target
-
-    def report(self, stage: Stage, pass_completed: bool) -> None:
-        if self.on_update is not None:
-            elapsed = time.perf_counter() - self.t0
-            fraction = self.paths_added / max(self.session.integrator.film_paths(), 1)
-            self.on_update(Progress(self.samples_done(), self.settings.samples, fraction, elapsed, self.rays,
-                                    self.rays / max(elapsed, 1e-9), pass_completed, self.noise, self.session.film,
-                                    stage.name))
-        self.last_update = time.perf_counter()
-
-    def stage(self, stage: Stage, backend) -> list | None:
-        """Run every item of `stage`; the items' results in order (film stages: []), or None
-        if the render stopped before the stage was complete."""
-        s, film = self.settings, self.session.film
-        pending = {}  # future -> item
-        finished = {}  # item -> result, waiting for its turn (order is fixed)
-        results = []
-        next_done = submitted = 0
-        while next_done < stage.items:
-            if self.should_stop is not None and not self.cancelled and self.should_stop():
-                self.cancelled = self.ended = True
-                self.stop.set()
-                if backend.processes:
-                    break  # workers are killed by the caller; nothing more is used
-            out_of_time = s.time_limit > 0 and time.perf_counter() - self.t0 >= s.time_limit
-            # The noise estimate needs a few passes to mean anything.
-            out_of_time |= self.samples_done() >= 4 and self.noise_reached()
-            if not self.stop.is_set() and not out_of_time:
-                while len(pending) < backend.in_flight and submitted < stage.items:
-                    pending[backend.submit(stage, submitted)] = submitted
-                    submitted += 1
-            if not pending:
-                break
-            done, _ = wait(pending, timeout=UPDATE_INTERVAL, return_when=FIRST_COMPLETED)
-            for fut in done:
-                item = pending.pop(fut)
-                try:
-                    finished[item] = fut.result()
-                except Cancelled:
-                    finished[item] = None
-            before = self.samples_done()
-            while next_done in finished:
-                result = finished.pop(next_done)
-                if result is None:  # cancelled mid-item: nothing after it is used either
-                    self.ended = True
-                    next_done = stage.items + 1
-                    break
-                data, item_rays, item_embree = result
-                if stage.film:
-                    passes = data.pop("passes", None) if isinstance(data, dict) else None
-                    L = data.pop("L") if isinstance(data, dict) else data  # dict: L + arrays to reduce
-                    self.session._add(stage, next_done, L, passes)
-                    self.paths_added += len(L)
-                if stage.publish:
-                    results.append(data)
-                self.rays += item_rays
-                self.embree_seconds += item_embree
-                next_done += 1
-            # A film stage that also publishes (ppm) completes its pass only once reduced:
-            # RenderSession.run reports it then, with the film's overlay up to date.
-            pass_completed = self.samples_done() > before and not stage.publish
-            # The estimate costs a pass over the film: every pass when it can stop the
-            # render, else at most once per NOISE_INTERVAL (it is only shown).
-            if pass_completed and (s.noise_target > 0 or time.perf_counter() - self.noise_time >= NOISE_INTERVAL):
-                self.noise, self.noise_time = film.noise(), time.perf_counter()
-            if pass_completed or time.perf_counter() - self.last_update >= UPDATE_INTERVAL:
-                self.report(stage, pass_completed)
-        if next_done != stage.items:
-            self.ended = True
-            return None
-        return results
+                           nonfinite=self.film.nonfinite, stopped_by=run.stopped_by if run.ended else "",
+                           processes=self.processes, stage_seconds=run.stage_seconds, counters=counters,
+                           settings=self.scene.settings, builds=dict(builds, workers=workers.STARTED[0] - self._builds0[1]))
 
 
 class _InProcess:
@@ -296,10 +200,13 @@ class _InProcess:
     def submit(self, stage: Stage, item: int):
         return self.pool.submit(self.tracer.run, stage, item, self.stop)
 
+    def wait(self, pending, timeout: float) -> set:
+        return wait(pending, timeout=timeout, return_when=FIRST_COMPLETED)[0]
+
     def install(self, version: int, arrays: dict, publisher) -> None:
         for a in arrays.values():
             a.flags.writeable = False  # the same contract as shared memory
-        self.tracer.integrator.install(version, arrays)
+        self.tracer.install(version, arrays)
 
     def close(self, kill: bool, keep: bool = False) -> None:
         self.stop.set()
@@ -325,6 +232,9 @@ class _Processes:
 
     def submit(self, stage: Stage, item: int):
         return self.pool.submit(stage, item)
+
+    def wait(self, pending, timeout: float) -> set:
+        return wait(pending, timeout=timeout, return_when=FIRST_COMPLETED)[0]
 
     def install(self, version: int, arrays: dict, publisher: Publisher) -> None:
         self.pool.install(version, publisher.publish(arrays))

@@ -2,13 +2,16 @@
 
 `BatchLayout`: film work is samples x border pixels in pass-major order (flat path index
 k: pass k // pixels, pixel k % pixels), cut into fixed-size batches (cheap; the render
-process needs only this when workers trace).
+process needs only this when workers trace). An adaptive pass covers only the pixels still
+active (engine/adaptive.py): its stage says so (`Stage.active`, the version of the list
+published to every process) and k runs over that list instead.
 `Tracer`: everything built once per process that traces - Embree scene, lights, the
 integrator's tracing side - in the render process or, identically, in every worker.
 """
 from __future__ import annotations
 
 import dataclasses
+import time
 
 import numpy as np
 
@@ -36,11 +39,33 @@ class BatchLayout:
         self.total_paths = s.samples * self.n_pixels
         self.first_path = s.sample_offset * self.n_pixels  # samples [offset, offset + samples)
         self.n_batches = -(-self.total_paths // s.batch_size)
+        self.active = (0, None)  # (version, (M,) border-pixel indices) of the adaptive pixel list
 
     def paths(self, stage: Stage, item: int) -> np.ndarray:
         """Flat path indices k of item `item` of a film stage."""
         first = stage.start + item * self.batch_size
         return np.arange(first, min(first + self.batch_size, stage.stop))
+
+    def pixels(self, stage: Stage) -> np.ndarray | None:
+        """The border-pixel indices a pass of `stage` covers (None: all of them)."""
+        if not stage.active:
+            return None
+        version, active = self.active
+        assert version == stage.active, "a stage over an active-pixel list that was not installed"
+        return active
+
+    def locate(self, stage: Stage, item: int) -> tuple[np.ndarray, np.ndarray]:
+        """(j, sample) of item `item`'s paths: j (N,) border-pixel indices (px[j], pixel[j]),
+        sample (N,) the pass each path belongs to."""
+        k = self.paths(stage, item)
+        active = self.pixels(stage)
+        if active is None:
+            return k % self.n_pixels, k // self.n_pixels
+        return active[k % len(active)], k // len(active)
+
+    def install(self, version: int, arrays: dict) -> None:
+        if "layout.active" in arrays:
+            self.active = (version, arrays["layout.active"])
 
 
 # What this process has built, for the persistent-data tests and the stats line.
@@ -80,19 +105,26 @@ class Tracer:
         needs_hit = s.film_transparent or any(n in HIT_PASSES for n in s.passes)
         self.first_hit = FirstHit(scene, self.accel) if needs_hit else None
 
+    def install(self, version: int, arrays: dict) -> None:
+        """Published arrays: the layout's own (layout.*), the rest to the integrator."""
+        self.integrator.layout.install(version, arrays)
+        rest = {k: v for k, v in arrays.items() if not k.startswith("layout.")}
+        if rest:
+            self.integrator.install(version, rest)
+
     def run(self, stage: Stage, item: int, stop=None):
-        """(result, rays, embree seconds) of one work item."""
+        """(result, rays, embree seconds, seconds) of one work item."""
+        t0 = time.perf_counter()
         rays0, embree0 = self.accel.rays, self.accel.embree_seconds
         result = self.integrator.run(stage, item, stop)
         if stage.film and self.first_hit is not None:
             result = with_passes(result, self._first_hit_passes(stage, item))
-        return result, self.accel.rays - rays0, self.accel.embree_seconds - embree0
+        return result, self.accel.rays - rays0, self.accel.embree_seconds - embree0, time.perf_counter() - t0
 
     def _first_hit_passes(self, stage: Stage, item: int) -> dict:
         s, layout = self.scene.settings, self.integrator.layout
-        k = layout.paths(stage, item)
-        j = k % layout.n_pixels
-        sampler = Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
+        j, sample = layout.locate(stage, item)
+        sampler = Sampler(s.seed, layout.pixel[j], sample, s.pattern)
         return self.first_hit.passes(sampler, layout.px[j], layout.py[j])
 
 

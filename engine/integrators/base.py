@@ -30,7 +30,8 @@ class Stage:
     """One kind of work. items: worker calls. film: each item returns radiance (N,3) for the
     flat path indices [start, stop) cut into batches (BatchLayout), or a dict with that as
     "L" and other arrays; publish: the items' results (without "L") are reduced and
-    published to every worker."""
+    published to every worker. active: 0, or the version of the active-pixel list the flat
+    indices run over (adaptive sampling; BatchLayout.locate)."""
 
     name: str
     items: int
@@ -38,6 +39,7 @@ class Stage:
     publish: bool = False
     start: int = 0
     stop: int = 0
+    active: int = 0
 
 
 @dataclass
@@ -65,6 +67,9 @@ class Integrator:
     own_passes: ClassVar[tuple] = ()
     # Whether it splits its radiance into the light passes (Diffuse Direct, ..., Emission).
     light_passes: ClassVar[bool] = False
+    # Whether its film-only stages may run over a subset of the pixels (adaptive sampling):
+    # its `run` places paths with BatchLayout.locate.
+    adaptive: ClassVar[bool] = False
 
     def __init__(self, scene: Scene):
         from ..tracer import BatchLayout

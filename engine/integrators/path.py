@@ -329,6 +329,7 @@ class PathIntegrator(Integrator):
     label = "Path Tracing"
     description = "Unidirectional path tracing with next-event estimation and MIS (unbiased)"
     light_passes = True
+    adaptive = True
 
     def stages(self, round: int):
         return [self.samples_stage()] if round == 0 else []
@@ -341,11 +342,10 @@ class PathIntegrator(Integrator):
 
     def run(self, stage: Stage, item: int, stop=None) -> np.ndarray:
         layout, s = self.layout, self.scene.settings
-        k = layout.paths(stage, item)
-        j = k % layout.n_pixels
-        sampler = Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
+        j, sample = layout.locate(stage, item)
+        sampler = Sampler(s.seed, layout.pixel[j], sample, s.pattern)
         if not self.tallied:
             return self.tracer.render(sampler, layout.px[j], layout.py[j], stop)
-        tally = LightTally(len(k), self.tallied)
+        tally = LightTally(len(j), self.tallied)
         L = self.tracer.render(sampler, layout.px[j], layout.py[j], stop, tally)
         return {"L": L, "passes": tally.passes()}

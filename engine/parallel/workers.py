@@ -90,7 +90,7 @@ def serve(fin, fout) -> None:
                 if msg[0] == "install":
                     _, version, handle = msg
                     new = Attachment(handle)
-                    tracer.integrator.install(version, new.arrays)
+                    tracer.install(version, new.arrays)
                     replaced = {current[name] for name in new.arrays if name in current}
                     current.update(dict.fromkeys(new.arrays, new))
                     for old in replaced - set(current.values()):
@@ -197,7 +197,7 @@ class _Worker:
 
 class WorkerPool:
     """n worker processes running the work items of one scene's integrator (`load`); `submit`
-    returns a Future of (result, rays, embree_seconds). Requests go to the least-loaded worker."""
+    returns a Future of (result, rays, embree_seconds, seconds). Requests go to the least-loaded worker."""
 
     def __init__(self, n: int):
         self.n = n

@@ -62,6 +62,7 @@ class PhotonIntegrator(Integrator):
     description = ("Two-pass photon mapping: caustic map, final gathering on the global map "
                    "(biased, consistent as photons grow)")
     own_passes = ("Caustics",)
+    adaptive = True  # its camera pass: the maps are built once, before it
 
     def __init__(self, scene):
         super().__init__(scene)
@@ -189,10 +190,9 @@ class PhotonIntegrator(Integrator):
                                               min_count=MIN_COUNT, accept=others)
             return {"position": position, "normal": normal, "E": E}
         layout = self.layout
-        k = layout.paths(stage, item)
-        j = k % layout.n_pixels
-        sampler = rng.Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
-        L = self._render(sampler, layout.pixel[j], k // layout.n_pixels, layout.px[j], layout.py[j], stop)
+        j, sample = layout.locate(stage, item)
+        sampler = rng.Sampler(s.seed, layout.pixel[j], sample, s.pattern)
+        L = self._render(sampler, layout.pixel[j], sample, layout.px[j], layout.py[j], stop)
         if self._caustics is None:
             return L
         return {"L": L, "passes": {"Caustics": np.ascontiguousarray(self._caustics.T)}}

@@ -41,6 +41,7 @@ class ProgressivePhotonIntegrator(PhotonIntegrator):
 
     noise_target = False  # the film's noise estimate sees only the part averaged over passes
     sample_offset = False  # pass r shrinks the radii of passes < r: no pass stands alone
+    adaptive = False  # every pixel's radius shrinks with every pass: each pass covers all pixels
 
     def __init__(self, scene):
         super().__init__(scene)
@@ -127,13 +128,12 @@ class ProgressivePhotonIntegrator(PhotonIntegrator):
             # Each pass its own photon stream (pixel = pass + 2: 0 and 1 are the photon integrator's).
             sampler = rng.Sampler(s.seed, np.full(len(paths), 2 + stage.start), paths, s.pattern, domain=rng.PHOTONS)
             return self.photon_tracer.trace(sampler, False, stop)
-        k = layout.paths(stage, item)
-        j = k % layout.n_pixels
+        j, sample = layout.locate(stage, item)
         self._radius_path = np.asarray(self.radius_published, np.float64)[j]
-        self._phi = np.zeros((len(k), 3))
-        self._count = np.zeros(len(k), np.int64)
-        sampler = rng.Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
-        L = self._render(sampler, layout.pixel[j], k // layout.n_pixels, layout.px[j], layout.py[j], stop)
+        self._phi = np.zeros((len(j), 3))
+        self._count = np.zeros(len(j), np.int64)
+        sampler = rng.Sampler(s.seed, layout.pixel[j], sample, s.pattern)
+        L = self._render(sampler, layout.pixel[j], sample, layout.px[j], layout.py[j], stop)
         return {"L": L, "phi": self._phi, "count": self._count}
 
     def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist):
