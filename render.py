@@ -340,22 +340,36 @@ class _Follower:
             print(log_line(self.frame, layer, progress), file=sys.stderr, flush=True)
         if not self.show_progress:
             return
+        limit = getattr(progress, "time_limit", 0.0)
         if self.bar is None or self.bar_layer != layer:
             self._close_bar()
             from tqdm import tqdm
             sys.stderr.write("\r" + " " * 80 + "\r")
             cols = shutil.get_terminal_size((80, 24)).columns
-            self.bar = tqdm(total=progress.samples_target, desc=layer, unit="spp", file=sys.stderr,
-                            ncols=max(40, min(cols, 120)), leave=True)
+            if limit > 0:  # the bar is the share of the time limit (Blender's progress bar too)
+                self.bar = tqdm(total=limit, desc=layer, file=sys.stderr, ncols=max(40, min(cols, 120)), leave=True,
+                                bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s{postfix}")
+            else:
+                self.bar = tqdm(total=progress.samples_target, desc=layer, unit="spp", file=sys.stderr,
+                                ncols=max(40, min(cols, 120)), leave=True)
             self.bar_layer = layer
-        self.bar.n = progress.samples_done
         postfix = f"{progress.rays_per_second / 1e6:.2f} M rays/s"
+        if limit > 0:
+            self.bar.n = min(max(progress.fraction * limit, 0.0), limit)
+            postfix = f"{progress.samples_done}/{progress.samples_target} spp, {postfix}"
+        else:
+            self.bar.n = progress.samples_done
         if getattr(progress, "stage", "pixels") != "pixels":
             postfix = f"{progress.stage}, {postfix}"
         if error is not None:
             postfix += f", relMSE {error:.3e}"
         self.bar.set_postfix_str(postfix, refresh=False)
         self.bar.refresh()
+
+    def on_run_done(self, layer, stats):
+        if self.bar is not None and not stats.cancelled:
+            self.bar.n = self.bar.total  # done (as Blender's bar): all samples, or the limit reached
+        self._close_bar()  # before the summary line, which would otherwise run into the bar
 
     def on_layer_done(self, layer, stats, image, border):
         self._close_bar()

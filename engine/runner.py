@@ -118,7 +118,7 @@ class Runner:
             elapsed = self.elapsed()
             self.on_update(Progress(self.passes, self.settings.samples, self.fraction(), elapsed, self.rays,
                                     self.rays / max(elapsed, 1e-9), pass_completed, self.noise, self.session.film,
-                                    stage.name))
+                                    stage.name, self.limit))
         self.last_update = self.clock()
 
     # --- the time limit -----------------------------------------------------------------

@@ -48,6 +48,7 @@ class Progress:
     noise: float | None
     film: Film
     stage: str = "pixels"  # the stage running now
+    time_limit: float = 0.0  # seconds from the session's start (elapsed counts from there too), 0 = none
 
 
 @dataclass

@@ -103,9 +103,9 @@ def test_stop_request_ends_the_render_early():
 
 
 def test_time_limit_stops_before_all_samples():
-    """8 x 8 pixels and batches of 64 paths: every batch is a whole pass, and the batches in
-    flight when the limit passes are finished and kept, so at least one pass is done; 10^5
-    passes cannot all fit in 0.2 s. The image is the unbiased estimate of what was done."""
+    """A real clock (tests/test_time_limit.py counts passes against a fake one): the first
+    pass is always done, 10^5 passes cannot all fit in 0.2 s, and the film keeps whole passes
+    only. The image is the unbiased estimate of what was done."""
     session = RenderSession(furnace_box(albedo=0.5, samples=100000, width=8, height=8, batch_size=64,
                                         time_limit=0.2, threads=1))
     stats = session.run()

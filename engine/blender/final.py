@@ -51,6 +51,9 @@ class RenderListener:
     def on_progress(self, layer: str, progress) -> None:
         pass
 
+    def on_run_done(self, layer: str, stats) -> None:
+        """The layer's sampling has ended; its summary line is printed next."""
+
     def on_layer_done(self, layer: str, stats, image, border: tuple) -> None:
         """image: (H, W, 4) float32 full frame, row 0 = top, zero outside border
         (x0, y0, x1, y1; top-left origin, half-open), or None if nothing was rendered."""
@@ -149,9 +152,8 @@ class _ExportProgress:
 class _Loop:
     """on_update / should_stop for RenderSession.run, on Blender's render thread."""
 
-    def __init__(self, engine, writer: ResultWriter, prefix: str, time_limit: float = 0.0):
+    def __init__(self, engine, writer: ResultWriter, prefix: str):
         self.engine, self.writer, self.prefix = engine, writer, prefix
-        self.time_limit = float(time_limit or 0.0)
         self.last_write = time.monotonic()
         self.film = None
         self.stopped = False
@@ -167,10 +169,8 @@ class _Loop:
         if progress.pass_completed or now - self.last_write >= REFRESH_SECONDS:
             self.writer.write(progress.film.image())
             self.last_write = now
-        fraction = float(progress.fraction)
-        if self.time_limit > 0:  # the run ends at the time limit or the sample count
-            fraction = max(fraction, float(progress.elapsed) / self.time_limit)
-        self.engine.update_progress(min(max(fraction, 0.0), 1.0))
+        # The share of the samples done, or of the time limit if that ends the render sooner.
+        self.engine.update_progress(min(max(float(progress.fraction), 0.0), 1.0))
         self.engine.update_stats("", self.prefix + stats_text(progress))
         _notify("on_progress", self.writer.layer, progress)
 
@@ -228,7 +228,6 @@ def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
     print(f"Ember: {layer}: exported in {time.perf_counter() - t0:.2f} s", flush=True)
     for w in warnings or ():
         _report_once(engine, 'WARNING', str(w))
-    settings = scene.settings
     if export_break():
         return None, None
     _notify("on_scene", layer, scene)
@@ -238,7 +237,7 @@ def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
     for w in getattr(session, "warnings", ()) or ():
         _report_once(engine, 'WARNING', str(w))
 
-    loop = _Loop(engine, writer, _layer_prefix(depsgraph, layer), settings.time_limit)
+    loop = _Loop(engine, writer, _layer_prefix(depsgraph, layer))
     stats = session.run(on_update=loop.on_update, should_stop=loop.should_stop)
     image = None
     film = loop.film if loop.film is not None else session.film
@@ -256,6 +255,7 @@ def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
         engine.update_progress(1.0)
     summary = stats.summary()
     engine.update_stats("", loop.prefix + summary)
+    _notify("on_run_done", layer, stats)  # a terminal progress bar ends before the summary line
     print(f"{summary} (view layer '{layer}')", flush=True)
     return stats, image
 
