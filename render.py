@@ -19,6 +19,12 @@ Options (each defaults to the scene's own setting):
     --time-limit S       stop after S seconds (0 = no limit)
     --noise-target X     stop once the estimated relative noise falls to X (0 = off)
     --seed K             random seed (>= 0)
+    --animated-seed on|off   a different noise pattern on every frame (Cycles' animated seed)
+    --adaptive on|off    adaptive sampling: pixels stop once their noise is below the threshold
+    --adaptive-threshold X   its noise threshold, 0..1 (0 = automatic from the samples)
+    --adaptive-min-samples N samples before a pixel may stop, 0..4096 (0 = automatic)
+    --preset NAME        preview or final: Ember's sampling presets (applied before the other
+                         options, which then override single values)
     --integrator NAME    path, photon (photon mapping), ppm (progressive photon mapping) or
                          icache (irradiance cache on photon-map final gathering)
     --pattern NAME       sobol (Owen-scrambled Sobol, the default) or random (independent)
@@ -207,6 +213,23 @@ LIGHT_PATH_OPTIONS = (
 )
 
 
+def _threshold(text):
+    value = _finite_at_least_zero("a number such as 0.01")(text)
+    if value > 1:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 1 (0 = automatic), got {text!r}")
+    return value
+
+
+# Sampling options: (option, scene.ember property, argparse type, help).
+SAMPLING_OPTIONS = (
+    ("--animated-seed", "use_animated_seed", _on_off, "on|off: a different noise pattern on every frame"),
+    ("--adaptive", "use_adaptive_sampling", _on_off, "on|off: adaptive sampling"),
+    ("--adaptive-threshold", "adaptive_threshold", _threshold, "adaptive sampling's noise threshold (0 = auto)"),
+    ("--adaptive-min-samples", "adaptive_min_samples", _int_at_least(0, 4096),
+     "samples before adaptive sampling may stop a pixel (0 = auto)"),
+)
+
+
 def _resolution(text):
     parts = text.lower().split("x")
     try:
@@ -246,6 +269,9 @@ def build_parser(blend_required: bool) -> argparse.ArgumentParser:
                    help="sample pattern: sobol (Owen-scrambled, the default) or random (independent)")
     p.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT in pixels")
     p.add_argument("--max-depth", type=_max_depth, help="longest light path (1..1024)")
+    p.add_argument("--preset", choices=("preview", "final"), help="Ember's sampling preset, before the other options")
+    for option, prop, kind, text in SAMPLING_OPTIONS:
+        p.add_argument(option, dest=prop, type=kind, help=text)
     for option, prop, kind, text in PHOTON_OPTIONS + LIGHT_PATH_OPTIONS:
         p.add_argument(option, dest=prop, type=kind, help=text)
     p.add_argument("--reference", help="linear EXR to print relMSE against while rendering")
@@ -529,6 +555,12 @@ class _Reference:
 def _apply_settings(scene, args) -> None:
     """Command-line overrides onto the in-memory scene (never saved)."""
     ember = scene.ember
+    if args.preset is not None:
+        from ember.ui.presets import apply_preset
+        apply_preset(ember, args.preset.upper())
+    for _, prop, _, _ in SAMPLING_OPTIONS:
+        if getattr(args, prop) is not None:
+            setattr(ember, prop, getattr(args, prop))
     if args.samples is not None:
         ember.samples = args.samples
     if args.time_limit is not None:

@@ -281,3 +281,18 @@ class Sampler:
             return u
         u = u.reshape(n, kk)
         return u if kk == k else np.ascontiguousarray(u[:, :k])
+
+
+def animated_seed(seed: int, frame: int, subframe: float = 0.0) -> int:
+    """The seed of frame `frame` when the noise pattern is animated (Cycles' use_animated_seed:
+    a hash of the frame and the seed, plus one of the subframe; intern/cycles/blender/sync.cpp).
+    Our own hash (SplitMix64), so the values differ from Cycles'; a seed in 0 .. 2^31 - 1."""
+    mask = (1 << 64) - 1
+
+    def mix(a: int, b: int) -> int:
+        return int(_mix(np.array([(a * int(_GOLDEN) ^ b * int(_K_SAMPLE)) & mask], np.uint64))[0])
+
+    h = mix(seed, frame & 0xFFFFFFFF)
+    if subframe:
+        h ^= mix(seed + 1, int(subframe * 0x7FFFFFFF) & 0xFFFFFFFF)
+    return h >> 33

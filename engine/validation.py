@@ -56,6 +56,7 @@ def validate(scene: Scene) -> None:
         problems.append(f"unknown render pass(es) {', '.join(unknown)} (use some of {', '.join(PASS_NAMES)})")
     problems += light_path_problems(s)
     problems += lens_problems(scene.camera)
+    problems += sampling_problems(s)
     if problems:
         raise EmberError("Invalid render settings: " + "; ".join(problems))
     check_light_values(scene)
@@ -312,3 +313,13 @@ def path_only_warnings(scene) -> list[str]:
         out.append(f"The '{s.integrator}' integrator ignores ray visibility and holdouts (Path Tracing only); "
                    "every object is seen by every ray (lights and the world keep their camera visibility).")
     return out
+
+
+def sampling_problems(s) -> list[str]:
+    """Adaptive sampling's settings (checked whether or not it is on: they are saved with it)."""
+    problems = []
+    if not 0 <= s.adaptive_threshold <= 1:
+        problems.append(f"noise threshold must be between 0 and 1 (0 = automatic) (got {s.adaptive_threshold})")
+    if not 0 <= s.adaptive_min_samples <= 4096:
+        problems.append(f"adaptive min samples must be 0..4096 (0 = automatic) (got {s.adaptive_min_samples})")
+    return problems

@@ -38,18 +38,36 @@ class EmberRenderPanel:
 class EMBER_RENDER_PT_sampling(EmberRenderPanel, bpy.types.Panel):
     bl_label = "Sampling"
 
+    def draw_header_preset(self, context):
+        self.layout.menu("EMBER_MT_sampling_presets", text="", icon='PRESET')
+
     def draw(self, context):
+        """As Cycles' Sampling > Render: noise threshold (adaptive), max/min samples, time limit."""
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
         settings = context.scene.ember
         col = layout.column()
         col.prop(settings, "integrator")
-        col.prop(settings, "samples")
+        heading = layout.column(align=True, heading="Noise Threshold")
+        row = heading.row(align=True)
+        row.prop(settings, "use_adaptive_sampling", text="")
+        sub = row.row()
+        sub.active = settings.use_adaptive_sampling
+        sub.prop(settings, "adaptive_threshold", text="")
+        col = layout.column(align=True)
+        if settings.use_adaptive_sampling:
+            col.prop(settings, "samples", text="Max Samples")
+            col.prop(settings, "adaptive_min_samples", text="Min Samples")
+        else:
+            col.prop(settings, "samples", text="Samples")
         col.prop(settings, "preview_samples")
         col.prop(settings, "time_limit")
+        col = layout.column()
         col.prop(settings, "noise_target")
-        col.prop(settings, "seed")
+        row = col.row(align=True)
+        row.prop(settings, "seed")
+        row.prop(settings, "use_animated_seed", text="", icon='TIME')
         col.prop(settings, "pattern")
 
 

@@ -253,6 +253,30 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
                     "(0 = off; biased, as Cycles' Filter Glossy)",
         default=0.0, min=0.0, soft_max=10.0,
     )
+    # Sampling controls with Cycles' names and meaning (Render Properties > Sampling).
+    use_adaptive_sampling: BoolProperty(
+        name="Use Adaptive Sampling",
+        description="Stop sampling each pixel once its estimated noise is below the noise threshold "
+                    "(decided every 16 passes after the minimum samples; path tracing and photon mapping)",
+        default=False,
+    )
+    adaptive_threshold: FloatProperty(
+        name="Noise Threshold",
+        description="Noise level at which a pixel stops; lower: less noise, longer renders "
+                    "(0 = automatic from the samples, as Cycles)",
+        default=0.01, min=0.0, max=1.0, soft_min=0.001, precision=4,
+    )
+    adaptive_min_samples: IntProperty(
+        name="Min Samples",
+        description="Samples every pixel gets before adaptive sampling may stop it "
+                    "(0 = automatic from the noise threshold, as Cycles)",
+        default=0, min=0, max=4096,
+    )
+    use_animated_seed: BoolProperty(
+        name="Use Animated Seed",
+        description="A different seed, and so a different noise pattern, on every frame",
+        default=False,
+    )
 
 
 class EmberViewLayerSettings(bpy.types.PropertyGroup):

@@ -13,10 +13,11 @@ import numpy as np
 
 from ..errors import EmberError
 from ..parallel.workers import available_cores
-from ..rng import PATTERNS
+from ..rng import PATTERNS, animated_seed
 from ..integrators import NAMES as INTEGRATORS
 from ..scene import FILTERS, Settings
-from ..validation import icache_problems, light_path_problems, photon_problems, sample_offset_problems
+from ..validation import (icache_problems, light_path_problems, photon_problems, sample_offset_problems,
+                          sampling_problems)
 
 _DEFAULTS = Settings()
 
@@ -25,7 +26,8 @@ _EMBER_FIELDS = ("samples", "sample_offset", "max_depth", "seed", "time_limit", 
                  "photons", "caustic_photons", "photon_k", "global_radius", "caustic_radius", "gather_rays",
                  "radiance_photons", "ppm_radius", "ppm_alpha", "icache_rays", "icache_a", "icache_gradients",
                  "diffuse_bounces", "glossy_bounces", "transmission_bounces", "transparent_bounces",
-                 "caustics_reflective", "caustics_refractive", "clamp_direct", "clamp_indirect", "filter_glossy")
+                 "caustics_reflective", "caustics_refractive", "clamp_direct", "clamp_indirect", "filter_glossy",
+                 "adaptive_threshold", "adaptive_min_samples")
 _INTEGRATOR_ENUM = {name.upper(): name for name in INTEGRATORS}  # UI enum id -> registry name
 
 
@@ -109,6 +111,11 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
     for name in ("photon_view", "photon_kernel", "icache_weight", "icache_gather", "icache_view"):  # UI ids: upper case
         if ember is not None and getattr(ember, name, None) is not None:
             kw[name] = str(getattr(ember, name)).lower()
+    if ember is not None and getattr(ember, "use_adaptive_sampling", None) is not None:
+        kw["adaptive"] = bool(ember.use_adaptive_sampling)
+    if ember is not None and getattr(ember, "use_animated_seed", False):
+        kw["seed"] = animated_seed(kw.get("seed", _DEFAULTS.seed), int(scene.frame_current),
+                                   float(getattr(scene, "frame_subframe", 0.0)))
 
     cycles = getattr(scene, "cycles", None)
     filt = getattr(cycles, "pixel_filter_type", None) if cycles is not None else None
@@ -157,4 +164,7 @@ def export_settings(scene, overrides: dict | None = None, warn=None) -> Settings
     problems = light_path_problems(settings)
     if problems:
         raise EmberError("Invalid light path settings: " + "; ".join(problems) + ".")
+    problems = sampling_problems(settings)
+    if problems:
+        raise EmberError("Invalid sampling settings: " + "; ".join(problems) + ".")
     return settings

@@ -6,7 +6,7 @@ unregisters what is there).
 """
 import bpy
 
-from ...ui import material, panels, properties
+from ...ui import material, panels, presets, properties
 from . import engine
 
 _registered = False
@@ -19,6 +19,7 @@ def register():
     properties.register()
     material.register()
     bpy.utils.register_class(engine.EmberRenderEngine)
+    presets.register()
     panels.register()
     _registered = True
 
@@ -26,6 +27,7 @@ def register():
 def unregister():
     global _registered
     panels.unregister()
+    presets.unregister()
     if getattr(engine.EmberRenderEngine, "is_registered", False):
         bpy.utils.unregister_class(engine.EmberRenderEngine)
     material.unregister()
