@@ -46,3 +46,116 @@ def test_same_seed_same_image():
     one, _ = _render(scene, seed=animated_seed(3, 1))
     two, _ = _render(scene, seed=animated_seed(3, 1))
     assert np.array_equal(one.film.mean(), two.film.mean())
+
+
+# --- adaptive sampling ------------------------------------------------------------------------
+def test_half_buffers_split_every_aligned_block_of_four_evenly():
+    a = np.array([adaptive.class_a(i) for i in range(1024)])
+    assert np.all(a.reshape(-1, 4).sum(axis=1) == 2)
+    # and every aligned block of 2^k >= 4 samples: half and half
+    assert all(np.all(a.reshape(-1, 2 ** k).sum(axis=1) == 2 ** (k - 1)) for k in range(2, 11))
+
+
+def test_pixel_error_is_cycles_formula():
+    """n = 4 samples of (1, 2, 3) and class A (twice its sum) of (2, 2, 6): error
+    sum|I - A| / n / (1e-4 + sqrt(sum I / n)) = (2 + 0 + 6) / 4 / (1e-4 + sqrt(24 / 4))."""
+    I, A = np.array([[4.0, 8.0, 12.0]]), np.array([[2.0, 8.0, 18.0]])
+    e = adaptive.pixel_error(I, A, np.array([4]))
+    assert e[0] == pytest.approx((2 + 0 + 6) / 4 / (1e-4 + np.sqrt(24 / 4)))
+
+
+def test_dilation_is_three_by_three():
+    m = np.zeros((5, 6), bool)
+    m[2, 3] = True
+    d = adaptive.dilate(m)
+    assert d.sum() == 9 and d[1:4, 2:5].all()
+
+
+def test_min_samples_and_threshold_defaults_follow_cycles():
+    s = sphere_with_point_light().settings
+    assert adaptive.min_samples(s.replace(adaptive_threshold=0.1)) == 32
+    assert adaptive.min_samples(s.replace(adaptive_threshold=0.01)) == 64
+    assert adaptive.min_samples(s.replace(adaptive_threshold=0.001)) == 128
+    assert adaptive.min_samples(s.replace(adaptive_min_samples=2)) == 4
+    assert adaptive.threshold(s.replace(adaptive_threshold=0.0, samples=4096)) == 0.001
+    assert adaptive.threshold(s.replace(adaptive_threshold=0.0, samples=64)) == 1 / 64
+
+
+def half_emitter_scene(**kw):
+    """Left half of the view: a black emitter of radiance 1 (no noise at all); right half: a
+    diffuse wall lit by a small sphere light (noisy). 24 x 24 pixels, box filter."""
+    from core_scenes import perspective, quads_mesh, settings
+    from ember.engine.scene import MAT_DIFFUSE, MAT_EMISSION_ONLY, Lights, Materials, Scene, World
+
+    quads = [[(-3, 0, -3), (0, 0, -3), (0, 0, 3), (-3, 0, 3)], [(0, 0, -3), (3, 0, -3), (3, 0, 3), (0, 0, 3)]]
+    mats = Materials.make([dict(kind=MAT_EMISSION_ONLY, base_color=(0, 0, 0), emission=(1, 1, 1)),
+                           dict(kind=MAT_DIFFUSE, base_color=(0.5, 0.5, 0.5))])
+    lights = Lights.make([dict(kind=0, position=(1.5, -0.6, 0.5), radius=0.3, Le=(20.0,) * 3)])
+    base = dict(width=24, height=24, samples=64, adaptive=True, adaptive_threshold=1e-4, adaptive_min_samples=16)
+    base.update(kw)
+    return Scene(quads_mesh(quads, [0, 1]), mats, lights, World(), perspective((0, -3, 0), (0, 0, 0), 50),
+                 settings(**base))
+
+
+def test_noise_free_pixels_stop_at_the_first_check_and_noisy_ones_go_on():
+    """Emitter pixels have error 0: they stop after the minimum samples (16), except within
+    one pixel of a noisy one (dilation); the wall's pixels (threshold 1e-4) get all 64."""
+    session, stats = _render(half_emitter_scene())
+    count = session.film.count.reshape(24, 24)
+    assert stats.samples == 64
+    assert np.all(count[:, :10] == 16), count[0]
+    assert np.all(count[:, 13:] == 64), count[0]
+    assert np.all(np.isin(count, (16, 64)))  # only at checks
+    assert 0 < np.count_nonzero(count[:, 10:13] == 64) < count[:, 10:13].size  # the dilated edge
+    L = session.film.mean()
+    assert np.all(L[:, :10] == 1.0)  # the emitter, exactly
+
+
+def test_nothing_converged_is_the_uniform_image():
+    """A threshold no pixel meets: adaptive sampling runs every pass over every pixel and gives
+    the uniform render's image bit for bit (passes, units and half buffers change nothing)."""
+    scene = sphere_with_point_light(radius=0.3, samples=40, width=12, height=12, adaptive_min_samples=8)
+    uniform, _ = _render(scene)
+    adapted, stats = _render(scene, adaptive=True, adaptive_threshold=1e-6)
+    assert stats.counters["adaptive"].startswith("adaptive: 144 of 144 pixels active")
+    assert np.array_equal(uniform.film.mean(), adapted.film.mean())
+
+
+def test_adaptive_image_does_not_depend_on_batches_or_workers():
+    scene = half_emitter_scene(adaptive_threshold=0.02, samples=96)
+    one, _ = _render(scene)
+    small, _ = _render(scene, batch_size=100)  # a pass of several items
+    two = RenderSession(scene.replace(settings=scene.settings.replace(threads=2, batch_size=256)))
+    assert two.processes == 2
+    two.run()
+    assert np.array_equal(one.film.count, small.film.count) and np.array_equal(one.film.count, two.film.count)
+    assert np.array_equal(one.film.mean(), small.film.mean()) and np.array_equal(one.film.mean(), two.film.mean())
+    assert len(np.unique(one.film.count)) >= 3  # pixels stopped at different checks
+
+
+def test_adaptive_with_a_time_limit_equals_the_same_number_of_passes():
+    """The adaptive checks wait for every earlier pass; with the fake clock of
+    tests/test_time_limit.py (1e-4 s per path) the limit falls after several checks."""
+    from test_time_limit import SimulatedSession
+
+    scene = half_emitter_scene(adaptive_threshold=0.02, samples=100000, time_limit=4.0, batch_size=2048)
+    limited = SimulatedSession(scene, startup=0.3, seconds=lambda stage, paths, start: 1e-4 * paths)
+    stats = limited.run()
+    assert stats.stopped_by == "time limit" and stats.elapsed <= 4.0 and stats.samples > 48
+    exact, _ = _render(scene, time_limit=0.0, samples=stats.samples)
+    assert np.array_equal(limited.film.count, exact.film.count)
+    assert np.array_equal(limited.film.mean(), exact.film.mean())
+
+
+def test_adaptive_applies_to_path_and_photon_only():
+    scene = furnace_box(samples=4, integrator="ppm", photons=1000, adaptive=True)
+    session = RenderSession(scene.replace(settings=scene.settings.replace(threads=1)))
+    assert any("Adaptive sampling does not apply" in w for w in session.warnings)
+    assert not session.scene.settings.adaptive
+
+
+@pytest.mark.parametrize("kw, words", [(dict(adaptive_threshold=2.0), "noise threshold"),
+                                       (dict(adaptive_min_samples=-3), "min samples")])
+def test_bad_adaptive_settings_are_refused(kw, words):
+    with pytest.raises(EmberError, match=words):
+        RenderSession(furnace_box(**kw))
