@@ -50,3 +50,27 @@ def test_progress_bar_follows_the_time_limit_and_ends_before_the_summary(scenes)
     bar_end = text[:text.index("Ember stopped at the time limit")]
     last_bar = bar_end.replace("\r\n", "\n").split("\r")[-1]
     assert "100%" in last_bar and "1.5/1.5 s" in last_bar, last_bar
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--adaptive", "maybe"], ["--adaptive", "on or off"]),
+    (["--adaptive-threshold", "1.5"], ["--adaptive-threshold", "between 0 and 1"]),
+    (["--adaptive-threshold", "-0.1"], ["--adaptive-threshold"]),
+    (["--adaptive-min-samples", "5000"], ["--adaptive-min-samples", "at most 4096"]),
+    (["--animated-seed", "yes"], ["--animated-seed", "on or off"]),
+    (["--preset", "draft"], ["--preset", "preview", "final"]),
+])
+def test_bad_sampling_options_one_line_exit_2(scenes, args, words):
+    code, out, err = run(scenes, "ok.blend", "-o", "x.png", *args)
+    assert code == 2
+    _one_clear_line(err, *words)
+
+
+def test_adaptive_options_render(scenes):
+    """--preset preview, then single values over it: the summary names adaptive sampling and
+    the pixels still active."""
+    code, out, err = run(scenes, "ok.blend", "-o", "adaptive.png", "--resolution", "16x16", "--preset", "preview",
+                         "--samples", "48", "--adaptive-min-samples", "16", "--adaptive-threshold", "0.05",
+                         "--animated-seed", "on", "--no-progress")
+    assert code == 0, err
+    assert re.search(r"adaptive: \d+ of 256 pixels active at the end", out), out
