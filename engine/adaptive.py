@@ -12,9 +12,13 @@ pixel, with n samples, I their sum and A twice the class-A sum,
 is the half-difference of the two half-buffers' means, relative to the square root of the
 pixel's brightness. A pixel converges when error < 5 x threshold (Cycles' scale factor).
 
-The check runs only at pass boundaries - after `min_samples` passes, every STEP passes - on
-the film of exactly those passes, so which pixels stay active depends only on the pass count,
-never on timing or the number of workers. A converged pixel is not checked again, but every
+The check runs only at pass boundaries - at the first multiple of STEP from `min_samples`
+on, then every STEP passes - on the film of exactly those passes, so which pixels stay active
+depends only on the pass count, never on timing or the number of workers. One difference from
+Cycles: once few pixels are active, checks come less often (every power of two >= STEP
+passes that gives CHECK_PATHS paths between checks), because a work item has a fixed cost in
+Python (~10-20 ms) and a few hundred pixels x 16 passes would be mostly that; the interval
+depends only on the number of active pixels, so images still depend only on the pass count. A converged pixel is not checked again, but every
 pixel within one pixel (3x3) of an active one is active (Cycles' filter_x / filter_y), so
 edges of noisy regions keep sampling.
 """
@@ -25,6 +29,7 @@ import math
 import numpy as np
 
 STEP = 16  # passes between checks (Cycles' adaptive_step)
+CHECK_PATHS = 1 << 15  # paths between checks at least, once few pixels are active
 ERROR_SCALE = 5.0  # Cycles: "threshold *= 5", so thresholds read like its older ones
 
 
@@ -48,9 +53,17 @@ def min_samples(settings) -> int:
     return max(4, math.ceil(16.0 / threshold(settings) ** 0.3))
 
 
-def is_check(passes: int, first: int) -> bool:
-    """Whether the active pixels are decided again after `passes` complete passes."""
-    return passes >= first and passes % STEP == 0
+def first_check(min_samples: int) -> int:
+    """The pass count of the first check: the first multiple of STEP from min_samples on."""
+    return -(-min_samples // STEP) * STEP
+
+
+def next_check(passes: int, active: int) -> int:
+    """The pass count of the check after the one at `passes` that left `active` pixels."""
+    step = STEP
+    while step * active < CHECK_PATHS:
+        step *= 2
+    return (passes // step + 1) * step
 
 
 def pixel_error(sum_all: np.ndarray, sum_a2: np.ndarray, count: np.ndarray) -> np.ndarray:

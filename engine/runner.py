@@ -85,7 +85,7 @@ class Runner:
         if s.adaptive and session.integrator.adaptive:
             self.active = adaptive_mod.ActivePixels(s, session.layout)
         self.active_list = (0, None)  # (version, border indices) the next units run over
-        self.checked = -1  # the pass count of the last adaptive check
+        self.next_check = adaptive_mod.first_check(self.active.first) if self.active is not None else 0
 
     # --- state ------------------------------------------------------------------------------
     def elapsed(self) -> float:
@@ -215,21 +215,20 @@ class Runner:
         p, last = stage.start // n, -(-stage.stop // n)
         workers = max(backend.processes, 1)
         while p < last:
-            if self.active is not None and adaptive_mod.is_check(p, self.active.first) and self.checked != p:
+            if self.active is not None and p == self.next_check:
                 if self.passes < p:
                     yield None  # the check needs every earlier pass in the film
                     continue
-                self.checked = p
                 if not self._adapt(backend):
                     return  # every pixel converged
+                self.next_check = adaptive_mod.next_check(p, len(self.active_list[1]))
             version, pixels = self.active_list
             m_pixels = n if pixels is None else len(pixels)
             # Passes up to the next check run over this list.
-            end = last
-            if self.active is not None:  # the next check
-                step = adaptive_mod.STEP
-                end = min(last, -(-max(p + 1, self.active.first) // step) * step)
+            end = last if self.active is None else min(last, self.next_check)
             cap = max(1, min(batch // m_pixels, end - p))
+            if self.active is not None:  # every worker gets part of the passes up to the check
+                cap = min(cap, max(1, -(-(end - p) // workers)))
             if self.limit > 0:
                 fit = self._fits(workers)
                 if not self.timings:

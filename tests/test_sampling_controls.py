@@ -122,7 +122,7 @@ def test_nothing_converged_is_the_uniform_image():
 
 
 def test_adaptive_image_does_not_depend_on_batches_or_workers():
-    scene = half_emitter_scene(adaptive_threshold=0.02, samples=96)
+    scene = half_emitter_scene(adaptive_threshold=0.02, samples=300)
     one, _ = _render(scene)
     small, _ = _render(scene, batch_size=100)  # a pass of several items
     two = RenderSession(scene.replace(settings=scene.settings.replace(threads=2, batch_size=256)))
