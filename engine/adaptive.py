@@ -29,7 +29,7 @@ import math
 import numpy as np
 
 STEP = 16  # passes between checks (Cycles' adaptive_step)
-CHECK_PATHS = 1 << 15  # paths between checks at least, once few pixels are active
+CHECK_PATHS = 1 << 16  # paths between checks at least, once few pixels are active
 ERROR_SCALE = 5.0  # Cycles: "threshold *= 5", so thresholds read like its older ones
 
 
