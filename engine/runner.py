@@ -71,7 +71,7 @@ class Runner:
         self.passes = 0  # complete passes in the film
         self.pass_clock: list[float] = []  # clock at each pass's completion
         self.open: list = []  # (pixels, L) of the pass being completed
-        self.paths_added = self.rays = 0
+        self.rays = 0
         self.embree_seconds = 0.0
         self.noise, self.noise_time = None, self.t0
         self.last_update = self.t0
@@ -90,9 +90,6 @@ class Runner:
     # --- state ------------------------------------------------------------------------------
     def elapsed(self) -> float:
         return self.clock() - self.t0
-
-    def samples_done(self) -> int:
-        return self.passes
 
     def noise_reached(self) -> bool:
         s = self.settings
@@ -193,7 +190,6 @@ class Runner:
         half = adaptive_mod.class_a(p)
         for pixel, L in self.open:
             film.add(pixel, L, class_a=half)
-            self.paths_added += len(L)
         self.open = []
         self.passes = p + 1
         film.end_pass(self.passes)
