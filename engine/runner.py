@@ -85,6 +85,9 @@ class Runner:
         if s.adaptive and session.integrator.adaptive:
             self.active = adaptive_mod.ActivePixels(s, session.layout)
         self.active_list = (0, None)  # (version, border indices) the next units run over
+        # Sample indices start at Settings.sample_offset (a part of a split render); passes,
+        # checks and the first pass that always runs count from there.
+        self.offset = s.sample_offset
         self.next_check = adaptive_mod.first_check(self.active.first) if self.active is not None else 0
 
     # --- state ------------------------------------------------------------------------------
@@ -185,13 +188,13 @@ class Runner:
 
     def _commit(self, p: int) -> None:
         """Pass p is complete: into the film, in pass order."""
-        assert p == self.passes, "passes must complete in order"
+        assert p == self.offset + self.passes, "passes must complete in order"
         film, s = self.session.film, self.settings
         half = adaptive_mod.class_a(p)
         for pixel, L in self.open:
             film.add(pixel, L, class_a=half)
         self.open = []
-        self.passes = p + 1
+        self.passes = p + 1 - self.offset
         film.end_pass(self.passes)
         self.pass_clock.append(self.clock())
         # The estimate costs a pass over the film: every pass when it can stop the render,
@@ -211,17 +214,17 @@ class Runner:
         p, last = stage.start // n, -(-stage.stop // n)
         workers = max(backend.processes, 1)
         while p < last:
-            if self.active is not None and p == self.next_check:
-                if self.passes < p:
+            if self.active is not None and p - self.offset == self.next_check:
+                if self.passes < p - self.offset:
                     yield None  # the check needs every earlier pass in the film
                     continue
                 if not self._adapt(backend):
                     return  # every pixel converged
-                self.next_check = adaptive_mod.next_check(p, len(self.active_list[1]))
+                self.next_check = adaptive_mod.next_check(p - self.offset, len(self.active_list[1]))
             version, pixels = self.active_list
             m_pixels = n if pixels is None else len(pixels)
             # Passes up to the next check run over this list.
-            end = last if self.active is None else min(last, self.next_check)
+            end = last if self.active is None else min(last, self.offset + self.next_check)
             cap = max(1, min(batch // m_pixels, end - p))
             if self.active is not None:  # every worker gets part of the passes up to the check
                 cap = min(cap, max(1, -(-(end - p) // workers)))
@@ -229,7 +232,7 @@ class Runner:
                 fit = self._fits(workers)
                 if not self.timings:
                     cap = 1  # single passes until a unit's time is measured
-                elif p > 0 and fit < min(m_pixels, batch):
+                elif p > self.offset and fit < min(m_pixels, batch):
                     yield None  # this pass would end after the limit: wait for the units in flight
                     continue
                 else:

@@ -64,7 +64,7 @@ class SimulatedWorkers:
             a.flags.writeable = False
         self.tracer.install(version, arrays)
 
-    def close(self, kill):
+    def close(self, kill, keep=False):
         pass
 
 
@@ -135,13 +135,14 @@ def test_work_in_flight_is_cancelled_at_the_limit():
     assert int(2 * 0.75 / (N * B)) - 2 <= stats.samples <= int(2 * (limit - startup) / (N * B))
 
 
-@pytest.mark.parametrize("batch_size", [4096, 24])
-def test_time_limited_image_equals_the_same_number_of_passes(batch_size):
+@pytest.mark.parametrize("batch_size, offset", [(4096, 0), (24, 0), (4096, 7)])
+def test_time_limited_image_equals_the_same_number_of_passes(batch_size, offset):
     """The image depends only on the pass count: a render stopped by the limit equals, bit for
     bit, a render of that many samples (the incomplete pass and the items in flight are
-    dropped; batch 24: a pass is three items)."""
+    dropped; batch 24: a pass is three items; offset 7: samples from the 8th on, a part of a
+    split render)."""
     scene = sphere_with_point_light(radius=0.3, samples=100000, width=8, height=8, batch_size=batch_size,
-                                    time_limit=1.5)
+                                    time_limit=1.5, sample_offset=offset)
     # Items slow down near the end, so the limit cancels work in flight (a pass half done).
     limited = SimulatedSession(scene, startup=0.3, seconds=lambda stage, paths, start: B * paths * (
         8.0 if start > 1.2 else 1.0))
