@@ -70,7 +70,7 @@ class Runner:
         self.stopped_by = ""
         self.passes = 0  # complete passes in the film
         self.pass_clock: list[float] = []  # clock at each pass's completion
-        self.open: list = []  # (pixels, L) of the pass being completed
+        self.open: list = []  # (pixels, L, render passes) of the pass being completed
         self.rays = 0
         self.embree_seconds = 0.0
         self.noise, self.noise_time = None, self.t0
@@ -168,7 +168,7 @@ class Runner:
         return self.clock() + per_pass - self.t0 <= self.limit
 
     # --- the film -----------------------------------------------------------------------
-    def _film_result(self, stage: Stage, item: int, L: np.ndarray) -> bool:
+    def _film_result(self, stage: Stage, item: int, L: np.ndarray, passes: dict | None = None) -> bool:
         """Buffer an item's radiance by pass and commit every pass it completes; True if one was."""
         layout = self.session.layout
         k = layout.paths(stage, item)
@@ -179,7 +179,8 @@ class Runner:
         while cut < len(k):
             end = min(len(k), cut + n - k[cut] % n)  # to the end of k[cut]'s pass
             j = k[cut:end] % n
-            self.open.append((layout.pixel[j if pixels is None else pixels[j]], L[cut:end]))
+            self.open.append((layout.pixel[j if pixels is None else pixels[j]], L[cut:end],
+                              {name: v[cut:end] for name, v in passes.items()} if passes else None))
             if (k[end - 1] + 1) % n == 0:
                 self._commit(int(k[end - 1]) // n)
                 completed = True
@@ -191,8 +192,8 @@ class Runner:
         assert p == self.offset + self.passes, "passes must complete in order"
         film, s = self.session.film, self.settings
         half = adaptive_mod.class_a(p)
-        for pixel, L in self.open:
-            film.add(pixel, L, class_a=half)
+        for pixel, L, passes in self.open:
+            film.add(pixel, L, passes, class_a=half)
         self.open = []
         self.passes = p + 1 - self.offset
         film.end_pass(self.passes)
@@ -328,8 +329,9 @@ class Runner:
                 unit = sent[next_done]
                 data, item_rays, item_embree, _ = result
                 if stage.film:
+                    passes = data.pop("passes", None) if isinstance(data, dict) else None  # render passes
                     L = data.pop("L") if isinstance(data, dict) else data  # dict: L + arrays to reduce
-                    completed |= self._film_result(unit.stage, unit.item, L)
+                    completed |= self._film_result(unit.stage, unit.item, L, passes)
                 if stage.publish:
                     results.append(data)
                 self.rays += item_rays
