@@ -228,6 +228,7 @@ def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
     print(f"Ember: {layer}: exported in {time.perf_counter() - t0:.2f} s", flush=True)
     for w in warnings or ():
         _report_once(engine, 'WARNING', str(w))
+    settings = scene.settings
     if export_break():
         return None, None
     _notify("on_scene", layer, scene)
