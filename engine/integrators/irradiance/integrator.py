@@ -328,7 +328,7 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
 
     def _records(self, item, stop):
         """Records at queue points [item x per item, ...): M x N gather rays each."""
-        s, ctx = self.scene.settings, self.ctx
+        s = self.scene.settings
         q = self.queue
         per = self._records_per_item()
         rows = np.arange(item * per, min((item + 1) * per, len(q["position"])))

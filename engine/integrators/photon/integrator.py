@@ -339,8 +339,8 @@ class PhotonIntegrator(Integrator):
 
     def _gather(self, sampler, pts, p, ng_f, prim, bsdf, G, emission_only=False, emission=True):
         """Radiance (K,3) x BSDF weight of one gather ray from each diffuse point pts (K,);
-        emission_only: only the emission the ray finds (the BSDF strategy of direct light)."""
-        scene, s, accel, lights = self.scene, self.scene.settings, self.ctx.accel, self.ctx.lights
+        emission_only: only the emission the ray finds (the BSDF strategy of direct light);
+        emission False: none of the emission the ray finds first (its light is sampled apart)."""
         u = sampler.get(0, None, 3)
         bs = _sample_rows(bsdf, pts, u)
         g = np.flatnonzero(bs.valid)
