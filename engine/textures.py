@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .scene import (EXT_CLIP, EXT_EXTEND, EXT_MIRROR, EXT_REPEAT, INTERP_CLOSEST, TEX_ALPHA,
+from .scene import (EXT_CLIP, EXT_MIRROR, EXT_REPEAT, INTERP_CLOSEST, TEX_ALPHA,
                     Materials)
 
 # Rec. 709 luminance: what Cycles uses to turn a colour into a float socket value (rgb_to_y).
