@@ -9,6 +9,13 @@ are not geometry: they neither occlude shadow rays nor stop other rays; a ray pa
 one collects its emission.
 Emissive triangles are ordinary (two-sided) geometry found through `light_of_prim`.
 
+Many lights: from TREE_MIN_LIGHTS finite lights on (analytic lights other than suns, and
+emissive triangles), a light tree (`light_tree`) chooses among them by their estimated
+contribution at the shading point; the infinite lights (suns, environment) keep their share of
+the power, P_inf, and are chosen among themselves by power. The pmf of a finite light then
+depends on the shading point: `pmf(index, p)`, also for the emitter-hit MIS weights (the
+previous vertex of the ray, the point NEE would have sampled from).
+
 Seed 000: one light per shading point, chosen with probability proportional to its power;
 that pmf enters every light-sampling pdf (also the one used for the emitter-hit MIS weight).
 As Cycles, a light of negative strength emits negative radiance and is chosen by |power|
@@ -23,9 +30,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import sampling
-from ..scene import LIGHT_SUN, RAY_ALL, RAY_CAMERA, Lights, Materials, Mesh, World
+from ..scene import LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, RAY_ALL, RAY_CAMERA, Lights, Materials, Mesh, World
 from ..vec import max3, scale, take
-from . import environment, shapes
+from . import environment, light_tree, shapes
+
+# From this many finite lights on, a light tree chooses them (below: power alone, as the seed
+# says). Measured in bench/many_lights.py (README): the tree's extra cost per shading point is
+# repaid from a few dozen lights spread over a scene.
+TREE_MIN_LIGHTS = 64
 
 
 def avg(c: np.ndarray) -> np.ndarray:
@@ -58,8 +70,9 @@ class LightSample:
 
 class LightSet:
     def __init__(self, lights: Lights, mesh: Mesh, materials: Materials, world: World, accel, scene_radius: float,
-                 strategy: str = "mis"):
-        """strategy: Settings.strategy; under "mis" the environment's table is MIS-compensated."""
+                 strategy: str = "mis", tree_min_lights: int | None = None):
+        """strategy: Settings.strategy; under "mis" the environment's table is MIS-compensated.
+        tree_min_lights: the light tree's threshold (default TREE_MIN_LIGHTS)."""
         self.lights = lights
         self.n_analytic = len(lights)
         self.scene_radius = scene_radius
@@ -86,9 +99,11 @@ class LightSet:
         self.count = len(power)
         self.env_index = self.count - 1 if self.env is not None else -1
         self.select = sampling.Distribution1D(power) if self.count and power.sum() > 0 else None
-        self.env_pmf = float(self.select.pmf(np.array([self.env_index]))[0]) if self.env is not None and self.select is not None else 0.0
         self.delta = np.zeros(self.count, bool)
         self.delta[:self.n_analytic] = shapes.is_delta(lights)
+        threshold = TREE_MIN_LIGHTS if tree_min_lights is None else tree_min_lights
+        self._build_tree(power, threshold)
+        self.env_pmf = float(self.pmf(np.array([self.env_index]))[0]) if self.env is not None and self.select is not None else 0.0
         self.kinds_present = sorted(set(lights.kind.tolist()))
         self.hittable = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind != LIGHT_SUN))
         self.suns = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind == LIGHT_SUN))
@@ -108,18 +123,102 @@ class LightSet:
     def empty(self) -> bool:
         return self.select is None
 
-    def pmf(self, index: np.ndarray) -> np.ndarray:
-        """Selection probability of lights `index` (0 for all when nothing has power)."""
+    def _build_tree(self, power, threshold):
+        """The light tree over the finite lights of positive power, if there are enough."""
+        self.tree = None
+        finite = np.ones(self.count, bool)
+        finite[:self.n_analytic] = self.lights.kind != LIGHT_SUN
+        if self.env is not None:
+            finite[self.env_index] = False
+        local = np.flatnonzero(finite & (power > 0))
+        if len(local) < threshold or self.select is None:
+            return
+        self.tree_light = local  # tree light j -> light index
+        self.tree_slot = np.full(self.count, -1, np.int64)
+        self.tree_slot[local] = np.arange(len(local))
+        infinite_power = np.where(finite, 0.0, power)
+        self.p_infinite = float(infinite_power.sum() / power.sum())
+        self.select_infinite = sampling.Distribution1D(infinite_power) if self.p_infinite > 0 else None
+        self.tree = light_tree.LightTree(*self._light_bounds(local), power[local], *self._light_cones(local))
+
+    def _light_bounds(self, index):
+        """Boxes lo, hi (K,3) of finite lights `index` (analytic lights before triangles)."""
+        a = index[index < self.n_analytic]
+        t = index[index >= self.n_analytic] - self.n_analytic
+        lights = self.lights
+        c = lights.position[a]
+        half = np.zeros((len(a), 3))
+        sphere = (lights.kind[a] == LIGHT_POINT) | (lights.kind[a] == LIGHT_SPOT)
+        half[sphere] = lights.radius[a][sphere, None]
+        flat = ~sphere  # rect and disk: the box of the rectangle c +- hx x +- hy y
+        hx, hy = lights.size[a, 0], lights.size[a, 1]
+        half[flat] = (np.abs(lights.frame[a, 0]) * hx[:, None] + np.abs(lights.frame[a, 1]) * hy[:, None])[flat]
+        corners = np.stack([self.tri_v0[t], self.tri_v0[t] + self.tri_e1[t], self.tri_v0[t] + self.tri_e2[t]], axis=1)
+        lo = np.concatenate([c - half, corners.min(axis=1)])
+        hi = np.concatenate([c + half, corners.max(axis=1)])
+        return lo, hi
+
+    def _light_cones(self, index):
+        """Orientation cones axis (K,3), theta_o, theta_e (K,) of finite lights `index`."""
+        a = index[index < self.n_analytic]
+        t = index[index >= self.n_analytic] - self.n_analytic
+        kind = self.lights.kind[a]
+        axis_a = -self.lights.frame[a, 2]  # spot axis and the emitting side of rects and disks
+        theta_o = np.select([kind == LIGHT_POINT, kind == LIGHT_SPOT],
+                            [np.pi, np.arccos(np.clip(self.lights.spot_cos_half[a], -1.0, 1.0))], 0.0)
+        # Area lights and spheres spread their light over a hemisphere about each normal;
+        # a delta spot emits only inside its cone.
+        theta_e = np.where((kind == LIGHT_SPOT) & (self.lights.radius[a] <= 0), 0.0, np.pi / 2)
+        axis = np.concatenate([axis_a, self.tri_ng[t]])
+        axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-300)
+        theta_o = np.concatenate([theta_o, np.full(len(t), np.pi)])  # two-sided triangles
+        theta_e = np.concatenate([theta_e, np.full(len(t), np.pi / 2)])
+        return axis, theta_o, theta_e
+
+    def pmf(self, index: np.ndarray, p: np.ndarray | None = None) -> np.ndarray:
+        """Selection probability of lights `index` (N,) chosen at shading points p (N,3) (0 for
+        all when nothing has power). p may be left out without a light tree and for infinite
+        lights (suns, environment), whose pmf does not depend on the point."""
         if self.select is None:
             return np.zeros(np.shape(index))
-        return self.select.pmf(index)
+        if self.tree is None:
+            return self.select.pmf(index)
+        index = np.asarray(index)
+        out = np.zeros(index.shape)
+        slot = self.tree_slot[index]
+        inf = slot < 0
+        if inf.any() and self.select_infinite is not None:
+            out[inf] = self.p_infinite * self.select_infinite.pmf(index[inf])
+        if not inf.all():
+            rows = np.flatnonzero(~inf)
+            out[rows] = (1.0 - self.p_infinite) * self.tree.pmf(slot[rows], p[rows])
+        return out
+
+    def _choose(self, p, u):
+        """Light index (N,) and its pmf (N,) for points p (N,3) from uniforms u (N,)."""
+        if self.tree is None:
+            index = self.select.sample_index(u)
+            pmf = self.select.pmf(index)
+            return index, pmf
+        index = np.zeros(len(p), np.int64)
+        pmf = np.zeros(len(p))
+        inf = u < self.p_infinite
+        if inf.any():
+            r = np.flatnonzero(inf)
+            index[r], pmf_inf, _ = self.select_infinite.sample_discrete(u[r] / self.p_infinite)
+            pmf[r] = self.p_infinite * pmf_inf
+        if not inf.all():
+            r = np.flatnonzero(~inf)
+            v = np.minimum((u[r] - self.p_infinite) / (1.0 - self.p_infinite), light_tree.ONE_MINUS_EPSILON)
+            j, pmf_tree = self.tree.sample(p[r], v)
+            index[r], pmf[r] = self.tree_light[j], (1.0 - self.p_infinite) * pmf_tree
+        return index, pmf
 
     # ---- next-event estimation ------------------------------------------------------------
     def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray) -> LightSample:
         """One light sample per shading point p (N,3) float64; u_select (N,), u (N,2)."""
         n = len(p)
-        index = self.select.sample_index(u_select)
-        pmf = self.select.pmf(index)
+        index, pmf = self._choose(p, np.asarray(u_select, np.float64))
         out = {}  # field -> (N,...) array; every row belongs to exactly one kind of light
 
         def put(rows, **values):
@@ -173,7 +272,7 @@ class LightSet:
         point on emissive triangle `prim` at distance t with |cos| at the light."""
         index = self.light_of_prim[prim]
         area = self.tri_area[index - self.n_analytic]
-        pdf = self.pmf(index) * np.divide(t * t, area * cos_light, out=np.zeros_like(t), where=(area * cos_light) > 0)
+        pdf = self.pmf(index, p_prev) * np.divide(t * t, area * cos_light, out=np.zeros_like(t), where=(area * cos_light) > 0)
         return np.where(np.isfinite(pdf), pdf, 0.0)
 
     def emission_along(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, pdf_bsdf: np.ndarray,
@@ -187,7 +286,7 @@ class LightSet:
         lights = self.lights
         for i in self.hittable.tolist():
             hit, gain, pdf_dir = shapes.hit_analytic(int(lights.kind[i]), lights, i, o, d, tmax)
-            self._add_weighted(total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera, kind)
+            self._add_weighted(total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera, kind, o)
         return total
 
     def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray,
@@ -214,15 +313,22 @@ class LightSet:
             total += np.where(seen[:, None], self.world, 0.0)
         return total
 
-    def _add_weighted(self, total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera, kind=None):
-        """total += gain x Le[i] x MIS weight on the rays that hit light i."""
+    def _add_weighted(self, total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera, kind=None, o=None):
+        """total += gain x Le[i] x MIS weight on the rays that hit light i (from origins o,
+        (N,3); None for infinite lights)."""
         if not self.lights.visible[i]:
             hit = hit & ~camera
         if kind is not None and self.partial_visibility:
             hit = hit & ((kind & self.light_visibility[i]) != 0)
         if not hit.any():
             return
-        pdf_light = self.pmf(np.array([i]))[0] * pdf_dir
+        if o is None or self.tree is None:
+            pmf = self.pmf(np.array([i]))[0]
+        else:  # the point-dependent pmf, on the rays that hit only
+            pmf = np.zeros(len(hit))
+            r = np.flatnonzero(hit)
+            pmf[r] = self.pmf(np.full(len(r), i), o[r])
+        pdf_light = pmf * pdf_dir
         w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
         a = np.where(hit, gain * w, 0.0)
         for k in range(3):
