@@ -1,7 +1,8 @@
 """Scenes built directly as arrays (no Blender) for analytic tests."""
 import numpy as np
 
-from ember.engine.scene import (Camera, Lights, Materials, Mesh, Scene, Settings, World, MAT_DIFFUSE)
+from ember.engine.scene import (Camera, Lights, Materials, Mesh, Scene, Settings, World, MAT_DIFFUSE,
+                               MAT_EMISSION_ONLY)
 
 
 def look_at(eye, target, up=(0, 0, 1)):
@@ -97,3 +98,33 @@ def sphere_with_point_light(albedo=0.5, intensity=np.pi, radius=0.0, soft=False,
     Le = intensity if radius == 0 else intensity / (np.pi * radius**2)
     lights = Lights.make([dict(kind=0, position=(0, 0, 0), radius=radius, Le=(Le,) * 3, soft=soft)])
     return Scene(mesh, mats, lights, World(), perspective((0, 0.3, 0), (0, 1, 0), 50), settings(**kw))
+
+
+def many_lights(n=1000, kind="triangle", size=0.1, lift=0.3, extent=15.0, decades=3.0, seed=0, **kw):
+    """n small lights of very different power spread over a large diffuse floor (40 m x 40 m,
+    albedo 0.5) under a black world, seen from above at an angle: the many-lights case of
+    issue 11. kind "triangle": emissive squares of side `size` at height `lift` facing down
+    (two triangles each, two-sided); "point": delta point lights at height `lift`. Positions are
+    uniform over [-extent, extent]^2, radiance or intensity log-uniform over `decades` decades
+    (total power about the same for every n). A few boxes cast shadows."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-extent, extent, (n, 2))
+    level = 10.0 ** rng.uniform(0.0, decades, n)
+    level *= 300.0 / level.sum()  # total power independent of n
+    floor = [[[-20, -20, 0], [20, -20, 0], [20, 20, 0], [-20, 20, 0]]]
+    boxes = [q for c in ((-3, 2), (4, -1), (0, -6)) for q in box_quads((c[0] - 1, c[1] - 1, 0), (c[0] + 1, c[1] + 1, 1.5))]
+    quads = floor + boxes
+    mats = [dict(kind=MAT_DIFFUSE, base_color=(0.5,) * 3)]
+    ids = [0] * len(quads)
+    light_rows = []
+    if kind == "triangle":
+        s = 0.5 * size
+        for (x, y), le in zip(xy, level):
+            quads.append([[x - s, y - s, lift], [x - s, y + s, lift], [x + s, y + s, lift], [x + s, y - s, lift]])
+            ids.append(len(mats))
+            mats.append(dict(kind=MAT_EMISSION_ONLY, emission=(le / (2 * size * size),) * 3))
+    else:
+        light_rows = [dict(kind=0, position=(x, y, lift), Le=(le / (4 * np.pi),) * 3) for (x, y), le in zip(xy, level)]
+    mesh = quads_mesh(quads, ids)
+    camera = perspective((0.0, -22.0, 14.0), (0.0, -2.0, 0.0), 50)
+    return Scene(mesh, Materials.make(mats), Lights.make(light_rows), World(), camera, settings(**kw))

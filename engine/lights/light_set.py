@@ -159,7 +159,8 @@ class LightSet:
         return lo, hi
 
     def _light_cones(self, index):
-        """Orientation cones axis (K,3), theta_o, theta_e (K,) of finite lights `index`."""
+        """Orientation cones axis (K,3), theta_o, theta_e (K,) and two_sided (K,) of finite
+        lights `index`."""
         a = index[index < self.n_analytic]
         t = index[index >= self.n_analytic] - self.n_analytic
         kind = self.lights.kind[a]
@@ -171,9 +172,10 @@ class LightSet:
         theta_e = np.where((kind == LIGHT_SPOT) & (self.lights.radius[a] <= 0), 0.0, np.pi / 2)
         axis = np.concatenate([axis_a, self.tri_ng[t]])
         axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-300)
-        theta_o = np.concatenate([theta_o, np.full(len(t), np.pi)])  # two-sided triangles
+        theta_o = np.concatenate([theta_o, np.zeros(len(t))])  # triangles: two-sided about ng
         theta_e = np.concatenate([theta_e, np.full(len(t), np.pi / 2)])
-        return axis, theta_o, theta_e
+        two_sided = np.arange(len(index)) >= len(a)
+        return axis, theta_o, theta_e, two_sided
 
     def pmf(self, index: np.ndarray, p: np.ndarray | None = None) -> np.ndarray:
         """Selection probability of lights `index` (N,) chosen at shading points p (N,3) (0 for
