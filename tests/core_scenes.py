@@ -100,14 +100,15 @@ def sphere_with_point_light(albedo=0.5, intensity=np.pi, radius=0.0, soft=False,
     return Scene(mesh, mats, lights, World(), perspective((0, 0.3, 0), (0, 1, 0), 50), settings(**kw))
 
 
-def many_lights(n=1000, kind="triangle", size=0.1, lift=0.3, extent=15.0, decades=3.0, seed=0, **kw):
+def many_lights(n=1000, kind="triangle", size=0.1, lift=0.3, extent=15.0, decades=3.0, layout=0, radius=0.0, **kw):
     """n small lights of very different power spread over a large diffuse floor (40 m x 40 m,
     albedo 0.5) under a black world, seen from above at an angle: the many-lights case of
     issue 11. kind "triangle": emissive squares of side `size` at height `lift` facing down
-    (two triangles each, two-sided); "point": delta point lights at height `lift`. Positions are
+    (two triangles each, two-sided); "point": point lights at height `lift` (delta, or spheres of
+`radius`). Positions are
     uniform over [-extent, extent]^2, radiance or intensity log-uniform over `decades` decades
-    (total power about the same for every n). A few boxes cast shadows."""
-    rng = np.random.default_rng(seed)
+    (total power about the same for every n; `layout` seeds both). A few boxes cast shadows."""
+    rng = np.random.default_rng(layout)
     xy = rng.uniform(-extent, extent, (n, 2))
     level = 10.0 ** rng.uniform(0.0, decades, n)
     level *= 300.0 / level.sum()  # total power independent of n
@@ -124,7 +125,9 @@ def many_lights(n=1000, kind="triangle", size=0.1, lift=0.3, extent=15.0, decade
             ids.append(len(mats))
             mats.append(dict(kind=MAT_EMISSION_ONLY, emission=(le / (2 * size * size),) * 3))
     else:
-        light_rows = [dict(kind=0, position=(x, y, lift), Le=(le / (4 * np.pi),) * 3) for (x, y), le in zip(xy, level)]
+        area = np.pi * radius**2 if radius > 0 else 1.0  # a sphere's radiance: I / (pi r^2)
+        light_rows = [dict(kind=0, position=(x, y, lift), radius=radius, soft=False, Le=(le / (4 * np.pi * area),) * 3)
+                      for (x, y), le in zip(xy, level)]
     mesh = quads_mesh(quads, ids)
     camera = perspective((0.0, -22.0, 14.0), (0.0, -2.0, 0.0), 50)
     return Scene(mesh, Materials.make(mats), Lights.make(light_rows), World(), camera, settings(**kw))
