@@ -110,6 +110,17 @@ def test_sample_pdf_is_what_a_hit_reports(ls):
         np.testing.assert_allclose(ls.pmf(np.full(len(mine), i), p[mine]) * pdf_dir[mine], s.pdf[mine], rtol=1e-6)
         checked += len(mine)
     assert checked > 100
+    # emission_along weighs what the rays find with that same pmf, at the rays' origins.
+    pdf_bsdf = np.full(n, 0.3)
+    found = ls.emission_along(p, s.wi, np.full(n, np.inf), pdf_bsdf, np.ones(n, bool), np.zeros(n, bool))
+    expect = np.zeros((n, 3))
+    for i in ls.hittable.tolist():
+        hit, gain, pdf_dir = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(n, np.inf))
+        r = np.flatnonzero(hit)
+        w = pdf_bsdf[r] / (pdf_bsdf[r] + ls.pmf(np.full(len(r), i), p[r]) * pdf_dir[r])
+        expect[r] += (gain[r] * w)[:, None] * ls.lights.Le[i]
+    assert np.count_nonzero(expect[:, 0]) > 100
+    np.testing.assert_allclose(found, expect, rtol=1e-9)
 
 
 def test_pmf_is_zero_only_behind_one_sided_lights(ls):
