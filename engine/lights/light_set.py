@@ -96,6 +96,7 @@ class LightSet:
         power = np.abs(np.concatenate([shapes.analytic_power(lights, scene_radius),
                                        2.0 * np.pi * self.tri_area * avg(np.abs(self.tri_Le)), env_power]))
         power = np.where(np.isfinite(power), power, 0.0)
+        self.power = power  # (count,) W, mean over RGB: what selection by power uses
         self.count = len(power)
         self.env_index = self.count - 1 if self.env is not None else -1
         self.select = sampling.Distribution1D(power) if self.count and power.sum() > 0 else None
