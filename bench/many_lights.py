@@ -74,12 +74,18 @@ def study(n, kind, size, spp, ref_factor):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--counts", help="comma-separated light counts (default: the study's)")
+    ap.add_argument("--kind", choices=("triangle", "point"), help="only this kind of light")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "many_lights.json"))
     args = ap.parse_args()
     size, spp = (32, 16) if args.quick else (64, 32)
     cases = [(n, "triangle") for n in (8, 32, 64, 128, 1000, 5000)] + [(n, "point") for n in (8, 32, 128, 1000)]
     if args.quick:
         cases = [(8, "triangle"), (64, "triangle"), (1000, "triangle"), (1000, "point")]
+    if args.counts:
+        cases = [(int(n), k) for k in ("triangle", "point") for n in args.counts.split(",")]
+    if args.kind:
+        cases = [(n, k) for n, k in cases if k == args.kind]
     rows = []
     print(f"{'lights':>12} {'pixels':>6} {'power cpu s':>11} {'tree cpu s':>10} {'power relMSE':>12} "
           f"{'tree relMSE':>11} {'equal-time ratio':>16} {'measured p/t':>14}")
