@@ -2,7 +2,6 @@
 environment map, a glass caustic under a point light, a closed diffuse interior, a glossy
 scene and a scene without light."""
 import numpy as np
-import pytest
 
 from ember.engine.analysis import ENCLOSED, analyse
 from ember.engine.scene import (LIGHT_POINT, LIGHT_RECT, LOBE_DIELECTRIC, LOBE_MICROFACET, MAT_DIFFUSE, Lights,
