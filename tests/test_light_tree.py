@@ -66,6 +66,25 @@ def test_the_tree_is_used_from_the_threshold_on():
     assert light_set.TREE_MIN_LIGHTS > 8 and make(None).tree is not None  # 40 lights: the tree
 
 
+def test_clustered_lights_keep_power_selection():
+    """An emissive sphere of 960 triangles, small in its scene: every triangle is about as far
+    from every receiver, so no tree (TREE_MIN_SPREAD); the same sphere filling the scene gets one."""
+    from core_scenes import uv_sphere
+    from ember.engine.scene import Mesh
+
+    def light_set_of(radius):
+        floor = quads_mesh([[[-5, -5, 0], [5, -5, 0], [5, 5, 0], [-5, 5, 0]]], [0])
+        v, t, n = uv_sphere((0, 0, 2), radius, 16, 32)
+        mesh = Mesh(np.concatenate([floor.vertices, v]), np.concatenate([floor.triangles, t + 4]),
+                    np.concatenate([floor.normals, n]), np.concatenate([floor.material, np.ones(len(t), np.int32)]))
+        mats = Materials.make([dict(kind=MAT_DIFFUSE, base_color=(0.5,) * 3), dict(kind=MAT_EMISSION_ONLY, emission=(5.0,) * 3)])
+        accel = Accel(mesh)
+        return LightSet(Lights.make([]), mesh, mats, World(), accel, accel.scene_radius)
+    small, large = light_set_of(0.2), light_set_of(4.0)
+    assert len(small.tri_prim) > light_set.TREE_MIN_LIGHTS and small.tree is None
+    assert large.tree is not None
+
+
 def test_pmf_sums_to_one_at_every_point(ls):
     assert ls.tree is not None and 0 < ls.p_infinite < 1
     for p in POINTS:
@@ -144,6 +163,7 @@ def _render(scene, tree, monkeypatch):
     session = RenderSession(scene)
     session.run()
     assert session.tracer is not None  # in-process: the switch reached the LightSet
+    assert (session.tracer.integrator.tracer.lights.tree is not None) == tree
     return session.film.mean(), session.film.variance_of_mean()
 
 

@@ -10,7 +10,7 @@ one collects its emission.
 Emissive triangles are ordinary (two-sided) geometry found through `light_of_prim`.
 
 Many lights: from TREE_MIN_LIGHTS finite lights on (analytic lights other than suns, and
-emissive triangles), a light tree (`light_tree`) chooses among them by their estimated
+emissive triangles) spread over TREE_MIN_SPREAD of the scene or more, a light tree (`light_tree`) chooses among them by their estimated
 contribution at the shading point; the infinite lights (suns, environment) keep their share of
 the power, P_inf, and are chosen among themselves by power. The pmf of a finite light then
 depends on the shading point: `pmf(index, p)`, also for the emitter-hit MIS weights (the
@@ -40,6 +40,11 @@ from . import environment, light_tree, shapes
 # 64 lost 1.14x, 16, 32, 128 and 1000 won 1.25x-4x); below that its cost per shading point
 # (1.2-1.7x the render time) is not repaid.
 TREE_MIN_LIGHTS = 32
+# ... and only when the lights spread over at least this share of the scene's bounding radius:
+# lights clustered far from most receivers (a chandelier, an emissive sphere of many triangles)
+# are all at about the same distance and orientation from a shading point, where the tree's
+# choice is power selection at a higher price.
+TREE_MIN_SPREAD = 0.25
 
 
 def avg(c: np.ndarray) -> np.ndarray:
@@ -136,13 +141,16 @@ class LightSet:
         local = np.flatnonzero(finite & (power > 0))
         if len(local) < threshold or self.select is None:
             return
+        lo, hi = self._light_bounds(local)
+        if 0.5 * np.linalg.norm(hi.max(axis=0) - lo.min(axis=0)) < TREE_MIN_SPREAD * self.scene_radius:
+            return
         self.tree_light = local  # tree light j -> light index
         self.tree_slot = np.full(self.count, -1, np.int64)
         self.tree_slot[local] = np.arange(len(local))
         infinite_power = np.where(finite, 0.0, power)
         self.p_infinite = float(infinite_power.sum() / power.sum())
         self.select_infinite = sampling.Distribution1D(infinite_power) if self.p_infinite > 0 else None
-        self.tree = light_tree.LightTree(*self._light_bounds(local), power[local], *self._light_cones(local))
+        self.tree = light_tree.LightTree(lo, hi, power[local], *self._light_cones(local))
 
     def _light_bounds(self, index):
         """Boxes lo, hi (K,3) of finite lights `index` (analytic lights before triangles)."""
