@@ -427,8 +427,13 @@ def markdown(res):
     return "\n".join(L)
 
 
-def _point_at(points, budget):
-    return next((p for p in points if p["budget"] == budget), None)
+def _point_at(points, budget, last=False):
+    """The first image past `budget`; for the largest budget (last=True) the end image, taken
+    when the time limit (= that budget) stops the render, if no update passed it before."""
+    p = next((p for p in points if p["budget"] == budget), None)
+    if p is None and last:
+        p = next((p for p in points if p["budget"] is None), None)
+    return p
 
 
 def equal_time(results, targets=((8.0, "interior", 0.25), (30.0, "interior", 1 / 3), (8.0, "cornell_box", 1.0))):
@@ -451,7 +456,7 @@ def equal_time(results, targets=((8.0, "interior", 0.25), (30.0, "interior", 1 /
         for b in run["budgets"]:
             cells = []
             for n in names:
-                p = None if "error" in runs[n] else _point_at(runs[n]["points"], b)
+                p = None if "error" in runs[n] else _point_at(runs[n]["points"], b, b == max(run["budgets"]))
                 cells.append("-" if p is None else f"{p['relmse_corrected']:.2e} ({p['seconds']:.1f} s, {p['samples']:.0f})")
             L.append(f"| {b:g} | " + " | ".join(cells) + " |")
         L.append("")
@@ -476,7 +481,8 @@ def equal_time(results, targets=((8.0, "interior", 0.25), (30.0, "interior", 1 /
     for b, name, bound in targets:
         runs = results["scenes"].get(name, {}).get("runs", {})
         ic, cy = runs.get("ember:icache", {}), runs.get("cycles", {})
-        p, c = _point_at(ic.get("points", []), b), _point_at(cy.get("points", []), b)
+        last = b == max(run["budgets"])
+        p, c = _point_at(ic.get("points", []), b, last), _point_at(cy.get("points", []), b, last)
         what = f"{name} {b:g} s: <= {bound:.2g} x Cycles"
         if p is None or c is None:
             L.append(f"| {what} | {e(p)} | {e(c)} | - | - | not met (no image by then) |")
