@@ -71,6 +71,7 @@ def serve(fin, fout) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     tracer, plain = None, {}
     current = {}  # array name -> the Attachment holding its latest version
+    deferred = None  # an install's failure, reported as the next request's answer
     try:
         while True:
             msg = read_message(fin)
@@ -89,19 +90,33 @@ def serve(fin, fout) -> None:
                     continue
                 if msg[0] == "install":
                     _, version, handle = msg
-                    new = Attachment(handle)
+                    try:
+                        new = Attachment(handle)
+                    except FileNotFoundError:
+                        # Published again before this worker got here: a segment is unlinked
+                        # once every array in it has a newer version, whose install follows.
+                        continue
                     tracer.install(version, new.arrays)
                     replaced = {current[name] for name in new.arrays if name in current}
                     current.update(dict.fromkeys(new.arrays, new))
                     for old in replaced - set(current.values()):
                         old.close()  # every array it held has a newer version
                     continue
+                if deferred is not None:
+                    write_message(fout, ("error", deferred))
+                    deferred = None
+                    continue
                 _, stage, item = msg
                 write_message(fout, ("done",) + tracer.run(Stage(**stage), item))
             except Exception:  # reported to the parent, which raises it on its side
                 import traceback
 
-                write_message(fout, ("error", traceback.format_exc()))
+                # Every request gets exactly one answer; an install gets none (the parent's
+                # reader pairs answers with requests in order), so its failure waits.
+                if msg[0] == "install":
+                    deferred = traceback.format_exc()
+                else:
+                    write_message(fout, ("error", traceback.format_exc()))
     finally:
         for attachment in set(current.values()):
             attachment.close()
@@ -148,7 +163,10 @@ class _Worker:
                 self._fail(EmberError("An Ember worker process ended unexpectedly (see the console)."))
                 return
             with self.lock:
-                fut = self.pending.pop(0)
+                fut = self.pending.pop(0) if self.pending else None
+            if fut is None:  # an answer nobody asked for: the pipe is out of step
+                self._fail(EmberError("An Ember worker process answered out of turn (see the console)."))
+                return
             if msg[0] == "done":
                 fut.set_result(msg[1:])
             else:

@@ -1,0 +1,38 @@
+"""The worker protocol (engine/parallel/workers.py): one answer per request, in order, also
+when a published version is superseded before a worker gets to it."""
+import time
+
+import numpy as np
+import pytest
+
+from core_scenes import furnace_box
+from ember.engine.integrators.base import Stage
+from ember.engine.parallel import workers
+from ember.engine.parallel.shared import Publisher
+
+
+def test_a_version_superseded_before_a_worker_attaches_it_costs_no_answer():
+    """Two versions of the same array published back to back: the first segment is unlinked
+    at once (every array in it has a newer version), so a worker that reads its install late
+    cannot attach it. It must skip it without answering (an answer nobody asked for put the
+    pipe out of step: the next item's result went to the wrong request, or, with none
+    pending, the reader thread died and the render hung), and still run the next item."""
+    if not workers.can_spawn():
+        pytest.skip("no worker processes can be started here")
+    scene = furnace_box(width=8, height=8, samples=1)
+    publisher = Publisher()
+    pool = workers.WorkerPool(1)
+    try:
+        pool.load(scene)
+        old = publisher.publish({"study.a": np.zeros(4)})
+        new = publisher.publish({"study.a": np.ones(4)})  # unlinks `old`
+        pool.install(1, old)
+        pool.install(2, new)
+        time.sleep(0.5)  # let the worker read both installs with no request pending
+        stage = Stage("pixels", 1, film=True, start=0, stop=64)
+        result = pool.submit(stage, 0).result(timeout=60)
+        assert result[0].shape == (64, 3)
+        assert pool.alive()
+    finally:
+        pool.close(kill=True)
+        publisher.release()
