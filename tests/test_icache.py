@@ -99,12 +99,14 @@ def _polygon_irradiance(p, n, verts, L):
 
 
 def _records_at(scene, points, normal=(0.0, 0.0, 1.0)):
-    """Records computed by the integrator's records stage at `points` (one work item)."""
+    """Records computed by the integrator's records stage at `points` (all its work items)."""
     integ = Tracer(scene).integrator
     n = np.tile(normal, (len(points), 1))
     integ.queue = {"position": points, "normal": n, "footprint": np.full(len(points), 1e-3),
                    "prim": np.zeros(len(points), np.int64), "key": np.arange(len(points)), "first_id": np.array([0])}
-    return integ._records(0, None)
+    items = -(-len(points) // integ._records_per_item(len(points)))
+    parts = [integ._records(item, None) for item in range(items)]
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
 def test_records_and_gradients_match_the_closed_form():

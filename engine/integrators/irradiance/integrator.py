@@ -49,6 +49,7 @@ MIN_PX, MAX_PX = 3.0, 20.0
 MIN_WORLD, MAX_WORLD = 1e-4, 0.1
 MIN_COS = 0.2  # a footprint grows as 1 / cos(view angle); grazing views are capped at this cosine
 RECORD_RAYS = 1 << 16  # gather rays per work item of the records stage (cancel latency)
+MIN_RECORD_ITEMS = 4  # work items a records round is cut into at least (two per core)
 MAX_ROUNDS = 12  # records rounds per placement; points still uncovered are final-gathered
 MAX_BLOCK = 16  # passes per pixels stage (records placed between blocks)
 DIRECT_SAMPLES = 4  # light samples (and as many BSDF samples) per camera sample at a cached point
@@ -121,10 +122,13 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
     def _place(self):
         """Records rounds until every candidate point is covered (or MAX_ROUNDS)."""
         while self.queue_len:
-            yield [Stage("records", -(-self.queue_len // self._records_per_item()), publish=True)]
+            yield [Stage("records", -(-self.queue_len // self._records_per_item(self.queue_len)), publish=True)]
 
-    def _records_per_item(self) -> int:
-        return max(1, RECORD_RAYS // (self.M * self.N))
+    def _records_per_item(self, queued: int) -> int:
+        """At most RECORD_RAYS gather rays per item (cancel latency, memory), and a round cut
+        into at least MIN_RECORD_ITEMS items, so that a small round does not leave a worker
+        idle. Records do not depend on the cut: their rays are numbered by record."""
+        return max(1, min(RECORD_RAYS // (self.M * self.N), -(-queued // MIN_RECORD_ITEMS)))
 
     def reduce(self, stage, results):
         if stage.name in ("photons", "radiance"):
@@ -330,7 +334,7 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         """Records at queue points [item x per item, ...): M x N gather rays each."""
         s = self.scene.settings
         q = self.queue
-        per = self._records_per_item()
+        per = self._records_per_item(len(q["position"]))
         rows = np.arange(item * per, min((item + 1) * per, len(q["position"])))
         K, M, N = len(rows), self.M, self.N
         MN = M * N
