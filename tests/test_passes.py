@@ -164,3 +164,14 @@ def test_direct_is_the_first_bounce_alone():
     for cls in passes_mod.LOBE_CLASSES:
         np.testing.assert_array_equal(one.pass_image(f"{cls} Direct"), two.pass_image(f"{cls} Direct"))
     assert two.pass_image("Diffuse Indirect").max() > 0
+
+
+def test_icache_writes_the_caustics_pass_and_keeps_combined():
+    """`icache` shades caustics as `photon` does: its Caustics pass is non-zero on the floor
+    under the glass sphere, and turning it on leaves Combined unchanged."""
+    kw = dict(integrator="icache", photons=3000, caustic_photons=30000, gather_rays=2, samples=1, width=16,
+              height=16, icache_rays=50)
+    with_pass = _render(_scene(**{**kw, "passes": ("Caustics",)}))
+    plain = _render(_scene(**{**kw, "passes": ()}))
+    assert with_pass.pass_image("Caustics")[-4:, :].max() > 0
+    np.testing.assert_array_equal(with_pass.mean(), plain.mean())

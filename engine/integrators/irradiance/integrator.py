@@ -206,20 +206,22 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         if stage.name == "records":
             return self._records(item, stop)
         s, layout = self.scene.settings, self.layout
-        k = layout.paths(stage, item)
-        j = k % layout.n_pixels
+        j, sample = layout.locate(stage, item)
         self._probing = stage.name == "probe"
         self._misses = []
         self._shaded = [0, 0]
-        sampler = rng.Sampler(s.seed, layout.pixel[j], k // layout.n_pixels, s.pattern)
-        L = self._render(sampler, layout.pixel[j], k // layout.n_pixels, layout.px[j], layout.py[j], stop)
+        sampler = rng.Sampler(s.seed, layout.pixel[j], sample, s.pattern)
+        L = self._render(sampler, layout.pixel[j], sample, layout.px[j], layout.py[j], stop)
         out = {f"miss.{f}": (np.concatenate([m[f] for m in self._misses]) if self._misses else
                              np.zeros((0, 3) if f in ("position", "normal") else 0,
                                       np.float64 if f in ("position", "normal", "footprint") else np.int64))
                for f in _FIELDS}
         if self._probing:
             return out
-        return {"L": L, **out, "interpolated": np.array([self._shaded[0]]), "fallback": np.array([self._shaded[1]])}
+        out.update(L=L, interpolated=np.array([self._shaded[0]]), fallback=np.array([self._shaded[1]]))
+        if self._caustics is not None:
+            out["passes"] = {"Caustics": np.ascontiguousarray(self._caustics.T)}
+        return out
 
     def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist):
         """At cached points: direct light, caustics and the cached irradiance; elsewhere (other
@@ -282,13 +284,12 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         if s.icache_view == "indirect":  # debug and studies: the cached term alone
             _accumulate(L, rows, bx * albedo * E * (1.0 / np.pi))
             return
-        if self.caustic_map is not None and len(self.caustic_map):
-            Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), lambda r, wi: bsdf.eval(wi, c[r])[0], s.photon_k,
-                                              self.r_caustic, kernel=s.photon_kernel, min_count=1,
-                                              accept=self.visible(at(p), at(ng_f), self.caustic_map))
-            _accumulate(L, rows, bx * Lc)
+        self._caustics_at(L, rows, c, bx, at, p, ng_f, bsdf)
         self._direct_emission(L, sampler, rows, c, bx, at, p, ng_f, ns, prim, bsdf, depth, sample, pixel)
         _accumulate(L, rows, bx * albedo * E * (1.0 / np.pi))
+
+    def _indirect_view(self) -> bool:
+        return self.scene.settings.icache_view == "indirect"
 
     def _direct_emission(self, L, sampler, rows, x, bx, at, p, ng_f, ns, prim, bsdf, depth, sample, pixel):
         """Direct light at points x: DIRECT_SAMPLES light samples and as many BSDF samples that

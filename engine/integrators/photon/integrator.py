@@ -284,13 +284,9 @@ class PhotonIntegrator(Integrator):
                                              accept=self.visible(at(p), at(ng_f), self.global_map))
             _accumulate(L, rows, bx * Lg)
             return
-        indirect = view == "indirect" or self.scene.settings.icache_view == "indirect"
-        if len(self.caustic_map) and not indirect:
-            Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), f_at(x), s.photon_k, self.r_caustic, kernel=s.photon_kernel, min_count=MIN_COUNT,
-                                              accept=self.visible(at(p), at(ng_f), self.caustic_map))
-            _accumulate(L, rows, bx * Lc)
-            if self._caustics is not None:
-                _accumulate(self._caustics, rows, bx * Lc)
+        indirect = self._indirect_view()
+        if not indirect:
+            self._caustics_at(L, rows, x, bx, at, p, ng_f, bsdf)
         if view == "caustic":
             return
         if not indirect:
@@ -304,6 +300,23 @@ class PhotonIntegrator(Integrator):
                                domain=rng.GATHER)
         Lg = self._gather(gsampler, x[rep], p, ng_f, prim, bsdf, G, emission=not indirect)
         _accumulate(L, rows[rep], take(bx, rep) * Lg / G)
+
+    def _indirect_view(self) -> bool:
+        """The debug view of the final-gathered indirect light alone (no direct, no caustics)."""
+        return self.scene.settings.photon_view == "indirect"
+
+    def _caustics_at(self, L, rows, x, bx, at, p, ng_f, bsdf):
+        """The caustic map's radiance estimate at the diffuse points x, into L (and the
+        Caustics render pass when it is on)."""
+        if self.caustic_map is None or not len(self.caustic_map):
+            return
+        s = self.scene.settings
+        Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), lambda r, wi: bsdf.eval(wi, x[r])[0], s.photon_k,
+                                          self.r_caustic, kernel=s.photon_kernel, min_count=MIN_COUNT,
+                                          accept=self.visible(at(p), at(ng_f), self.caustic_map))
+        _accumulate(L, rows, bx * Lc)
+        if self._caustics is not None:
+            _accumulate(self._caustics, rows, bx * Lc)
 
     def visible(self, p, n, photons):
         """accept(rows, j) for the photon estimates: photon j and query point p[rows] see each
