@@ -463,7 +463,9 @@ class Settings:
     icache_a: float = 0.2  # accuracy a: a record is used where Ward's error < a (the seed's 0.1-0.35)
     icache_gradients: bool = True  # extrapolate records by their rotational and translational gradients
     icache_weight: str = "ward"  # interpolation weight: "ward" (the seed) or "tabellion" (Tabellion-Lamorlette)
-    icache_gather: str = "photon"  # radiance at gather hits: "photon" (global map, the seed's) or "path"
+    # radiance at gather hits: "path" (path tracing; measured faster and unbiased, README) or
+    # "photon" (the global photon map: the seed's combination)
+    icache_gather: str = "path"
     icache_view: str = "full"  # "full", or the debug view "records" (records as dots)
     # First sample index: a render takes samples [sample_offset, sample_offset + samples) of
     # the one sequence, so renders of disjoint ranges merge into the render of their union.

@@ -38,8 +38,9 @@ ICACHE_WEIGHT_ITEMS = [
 ]
 
 ICACHE_GATHER_ITEMS = [
-    ('PHOTON', "Photon Map", "Gather rays read the global photon map (the seed's recommendation: fast, smooth)"),
-    ('PATH', "Path Tracing", "Gather rays trace paths (no photon-map blur; noisier records)"),
+    ('PATH', "Path Tracing", "Gather rays trace paths: unbiased records, refined as the passes grow"),
+    ('PHOTON', "Photon Map", "Gather rays read the global photon map (the seed's combination: smooth, "
+                             "biased where photons are sparse, slower per record here)"),
 ]
 
 ICACHE_VIEW_ITEMS = [
@@ -192,7 +193,7 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
         name="Gather",
         description="Radiance found by a record's gather rays",
         items=ICACHE_GATHER_ITEMS,
-        default='PHOTON',
+        default='PATH',
     )
     icache_view: EnumProperty(
         name="View",

@@ -96,20 +96,24 @@ class PathTracer:
                           tally=tally)
 
     def trace(self, sampler, o64, o32, d, tmax, skip, stop=None, first_emission=True,
-              max_depth=None, t_first=None, tally=None) -> np.ndarray:
+              max_depth=None, t_first=None, tally=None, caustic_ends=None) -> np.ndarray:
         """Radiance (N,3) arriving along rays from o64 (float64 points; o32 their offset float32
         origins, skip the primitive each leaves or -1) in directions d; tmax (N,) or None.
         Random groups from 1 (group 0 is the caller's). first_emission False leaves out the
         emission the rays themselves find (a gather ray whose direct light is sampled apart);
         max_depth: bounces after the first hit (default: the scene's); t_first (N,), if given,
         receives the first hit's distance (inf where the ray escaped); tally: light passes
-        (render, camera rays only)."""
+        (render, camera rays only); caustic_ends (M,) bool per material, or None: light that a
+        path finds before it reaches one of these materials is left out (a gather path from a
+        point whose caustics come from a caustic map: that map holds exactly those paths)."""
         n = len(d)
         L = np.zeros((3, n))  # channel-major: see _accumulate
         idx = np.arange(n)  # which pixel sample each live path belongs to
         beta = np.ones((n, 3))
         pdf_prev = np.zeros(n)  # q * p_b of the bounce that produced the ray
         no_mis = np.ones(n, bool)  # camera ray: emitters seen with weight 1
+        # Paths whose light is left out so far (caustic_ends; else first_emission at depth 0).
+        dark = np.full(n, caustic_ends is not None)
         mesh = self.scene.mesh
         max_depth = self.max_depth if max_depth is None else max_depth
         bounces = _Bounces.start(n, max_depth, self.any_transparent, self.counted, self.ray_kinds,
@@ -125,20 +129,21 @@ class PathTracer:
             if depth == 0 and t_first is not None:
                 t_first[:] = np.where(hit.prim >= 0, hit.t, np.inf)
             camera_ray = kind == RAY_CAMERA if kind is not None else np.full(len(idx), depth == 0)
-            emission = first_emission or depth > 0
+            emission = (first_emission or depth > 0) & ~dark  # (n,) bool
             # Emission found by this ray is "direct" for clamping after at most one bounce.
             direct = bounces.total <= 1 if self.clamp is not None else None
             # Light objects the ray passes on its way (they do not stop it).
-            if len(self.lights.hittable) and emission:
+            if len(self.lights.hittable) and emission.any():
                 c = beta * self.lights.emission_along(o64, d, hit.t, pdf_prev, ~no_mis, camera_ray, kind)
+                c[~emission] = 0.0
                 c = self._clamp(c, direct)
                 _accumulate(L, idx, c)
                 if tally:
                     tally.emitted(depth, idx, c)
             # Escaped rays see the suns and the world.
             missed = hit.prim < 0
-            if missed.any() and self.lights.sees_escaped and emission:
-                r = np.flatnonzero(missed)
+            if missed.any() and self.lights.sees_escaped and emission.any():
+                r = np.flatnonzero(missed & emission)
                 c = take(beta, r) * self.lights.escaped(take(d, r), pdf_prev[r], ~no_mis[r], camera_ray[r],
                                                         None if kind is None else kind[r])
                 c = self._clamp(c, direct, r)
@@ -150,12 +155,13 @@ class PathTracer:
                 break
             o_prev = o64  # previous vertices, indexed through `keep` where needed
             idx, pdf_prev, no_mis, hit_t, prim = idx[keep], pdf_prev[keep], no_mis[keep], hit.t[keep], hit.prim[keep]
+            emission, dark = emission[keep], dark[keep]
             beta, hit_p, d, bary, ng = (take(a, keep) for a in (beta, hit.p, d, hit.b, hit.ng))
             bounces = bounces.take(keep)
             mat = mesh.material[prim]
             # Emissive triangles hit by the ray.
-            emits = self.emissive_material[mat]
-            if emits.any() and emission:
+            emits = self.emissive_material[mat] & emission
+            if emits.any():
                 r = np.flatnonzero(emits)
                 Le = take(self.materials.emission, mat[r])
                 cos_l = np.abs(dot(take(d, r), take(ng, r)))
@@ -177,6 +183,7 @@ class PathTracer:
                 if len(keep) == 0:
                     break
                 idx, pdf_prev, no_mis, prim, mat = idx[keep], pdf_prev[keep], no_mis[keep], prim[keep], mat[keep]
+                dark = dark[keep]
                 beta, hit_p, d, bary, ng = (take(a, keep) for a in (beta, hit_p, d, bary, ng))
                 bounces = bounces.take(keep)
             # Shading frame, flipped to the side the ray came from (two-sided, like Cycles).
@@ -190,8 +197,10 @@ class PathTracer:
             albedo = max3(bsdf.reflectance)
             q = np.minimum(1.0, albedo) if depth >= self.rr_depth else np.ones(len(idx))
             m = len(idx)
+            if caustic_ends is not None:
+                dark &= ~caustic_ends[mat]
             # Next-event estimation at points whose BSDF has a non-delta part.
-            active = np.flatnonzero(bsdf.has_smooth & ~bounces.last if self.any_transparent else bsdf.has_smooth)
+            active = np.flatnonzero((bsdf.has_smooth & ~bounces.last if self.any_transparent else bsdf.has_smooth) & ~dark)
             if len(active) and self.use_nee and not self.lights.empty:
                 at = gatherer(active, m)
                 u_light = sampler.get(base + _LIGHT, idx[active], 3)
@@ -224,7 +233,7 @@ class PathTracer:
             beta = beta * scale(bs.weight, np.divide(1.0, q, out=np.zeros(m), where=survive))
             survive &= max3(beta) > 0
             keep = np.flatnonzero(survive)
-            idx, beta, d = idx[keep], take(beta, keep), take(bs.wi, keep)
+            idx, beta, d, dark = idx[keep], take(beta, keep), take(bs.wi, keep), dark[keep]
             bounces = bounces.take(keep).count(bs, keep, self.limits, max_depth)
             # Strategy switches: pdf_prev 0 makes emission found after a non-delta bounce weigh 0
             # ("light" alone); no_mis makes it weigh 1 (after delta bounces, or "bsdf" alone).
