@@ -19,10 +19,13 @@ default settings unless a part says otherwise. Parts:
   brute      (a) brute force against the cache, at --small, threads=1, at --brute-spp samples:
              photon_view="indirect", gather_rays = icache_rays = 392 at every camera sample,
              against icache_view="indirect"; relMSE against the converged indirect; CPU and
-             wall time (photon map included; also without it).
+             wall time (photon map included; also without it); and the cache at a tenth of
+             the brute force's wall time (a time limit: as many passes as fit, records refined).
   gradients  (b) icache with and without gradients (the record set does not depend on the
-             flag: checked): indirect view at --small against the converged indirect, and the
-             full image at --res (--spp samples, both cores) against the Cycles reference.
+             flag: checked): indirect view at --small (--gradient-spp samples: the records
+             refined, so that their noise does not hide the interpolation error) against the
+             converged indirect, and the full image at --res (--spp samples, both cores)
+             against the Cycles reference.
   accuracy   (c) a in {0.1, 0.2, 0.35}: records, records per megapixel, share interpolated,
              time per stage and relMSE against Cycles at --res (--spp samples, both cores);
              and the indirect view at --small against the converged indirect.
@@ -159,7 +162,8 @@ class Renderer:
             return img, json.loads(json.dumps(facts)), integ
         img, facts, integ = self._render(name, res, **kw)
         if kw.get("photon_view") == "indirect" or kw.get("icache_view") == "indirect":
-            seen = {k: kw[k] for k in ("samples", "threads") if k in kw}
+            seen = {k: kw[k] for k in ("threads",) if k in kw}
+            seen["samples"] = int(facts["samples"])  # a time-limited render: the passes it made
             emission, _, _ = self._render(name, res, integrator="photon", photon_view="indirect", gather_rays=0,
                                           photons=1000, caustic_photons=0, **seen)
             img = img - emission
@@ -203,9 +207,11 @@ def _indirect_photon(args):
 
 
 def _indirect_cache(args, **kw):
-    """The cache's indirect view (points no record covers are final-gathered with as many rays)."""
+    """The cache's indirect view (points no record covers are final-gathered with as many rays),
+    with photon-map gathers as the brute force's (the default path-traced gathers converge to
+    the true indirect term, not to the photon map's)."""
     return dict(integrator="icache", icache_view="indirect", icache_rays=args.rays, gather_rays=args.rays,
-                threads=1, **kw)
+                icache_gather="photon", threads=1, **kw)
 
 
 def converged(R, args, out, name):
@@ -267,6 +273,13 @@ def part_brute(R, args, out, name, res):
             f["photons"] = f["counters"].get("photons")
             rows.append(f)
         b = next(f for f in rows if f["label"] == "brute force" and f["samples"] == spp)
+        # The cache at a tenth of the brute force's time: as many passes as fit, the records
+        # refined between blocks (the time limit counts the whole render).
+        img, f, _ = R.render(name, args.small, samples=1 << 20, time_limit=b["wall_s"] / 10, **_indirect_cache(args))
+        f.update(label="icache, 1/10 of the brute force's time", **_against(img, ref, cf["own_relmse"]))
+        f["photon_map_s"] = f["stage_seconds"].get("photons", 0.0)
+        f["photons"] = f["counters"].get("photons")
+        rows.append(f)
         for c in rows[rows.index(b) + 1:]:
             if b["photons"] != c["photons"] or b["photons"] != cf["photons"]:
                 print(f"  warning: photon maps differ: {b['photons']} / {c['photons']} / {cf['photons']}", flush=True)
@@ -286,7 +299,7 @@ def part_gradients(R, args, out, name, res):
         for grad in (True, False):
             if key == "small":
                 ref, cf = converged(R, args, out, name)
-                img, f, integ = R.render(name, args.small, samples=args.brute_spp[-1], icache_gradients=grad,
+                img, f, integ = R.render(name, args.small, samples=args.gradient_spp, icache_gradients=grad,
                                          **_indirect_cache(args))
                 d[grad] = {**f, **_against(img, ref, cf["own_relmse"])}
             else:
@@ -520,6 +533,8 @@ def parse_args(argv):
     ap.add_argument("--res", type=int, default=256, help="resolution of the full-image studies (Cycles reference)")
     ap.add_argument("--spp", type=int, default=16, help="samples of the full-image renders")
     ap.add_argument("--brute-spp", default="1,4", help="samples of the brute-force comparison (comma-separated)")
+    ap.add_argument("--gradient-spp", type=int, default=64,
+                    help="samples of part gradients' indirect images (records refined every 16)")
     ap.add_argument("--converged-spp", type=int, default=8, help="samples of each converged half")
     ap.add_argument("--weights-spp", type=int, default=16, help="samples of part weights' full images (0: none)")
     ap.add_argument("--extra-rays", default="", help="part brute: extra icache rows with these rays per record")
