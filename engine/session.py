@@ -70,6 +70,9 @@ class RenderStats:
     # What this render built: {"workers": processes started, "embree": Embree scenes, "lights":
     # light tables} (in one worker; all 0 on a frame that persistent data served whole).
     builds: dict = field(default_factory=dict)
+    # Integrator `auto`: the choice with its reasons (first line), the scene analysis and what
+    # was left out and why (engine/integrators/auto.py); empty for an integrator chosen by name.
+    auto: tuple = ()
 
     def summary(self) -> str:
         state = {"cancel": "cancelled", "": "done"}.get(self.stopped_by, f"stopped at the {self.stopped_by}")
@@ -78,6 +81,8 @@ class RenderStats:
         if len(self.stage_seconds) > 1:
             stages = " | " + ", ".join(f"{name} {sec:.2f} s" for name, sec in self.stage_seconds.items())
         counters = "".join(f" | {text}" for text in self.counters.values())
+        if self.auto:
+            counters = f" | {self.auto[0]}{counters}"
         return (f"Ember {state}: {self.samples} samples in {self.elapsed:.2f} s | "
                 f"{self.rays_per_second / 1e6:.2f} M rays/s | Embree {self.embree_share:.0%} of render time{noise}"
                 f"{stages}{counters} | {self.nonfinite} non-finite samples")
@@ -96,6 +101,10 @@ class RenderSession:
         validate(scene)
         scene = recentred(scene)  # far from the world origin: render about the scene's centre
         t0 = time.perf_counter()
+        self.auto = ()
+        if scene.settings.integrator == integrators.auto.AutoIntegrator.name:  # analyse and choose, once
+            resolved = integrators.auto.resolve(scene)
+            scene, self.auto = resolved.scene, resolved.lines
         self.warnings: list[str] = []
         if scene.settings.noise_target > 0 and not integrators.REGISTRY[scene.settings.integrator].noise_target:
             self.warnings.append(f"The noise target does not apply to the '{scene.settings.integrator}' integrator "
@@ -185,7 +194,8 @@ class RenderSession:
                            build_seconds=self.build_seconds, cancelled=run.cancelled, noise=noise,
                            nonfinite=self.film.nonfinite, stopped_by=run.stopped_by if run.ended else "",
                            processes=self.processes, stage_seconds=run.stage_seconds, counters=counters,
-                           settings=self.scene.settings, builds=dict(builds, workers=workers.STARTED[0] - self._builds0[1]))
+                           settings=self.scene.settings, builds=dict(builds, workers=workers.STARTED[0] - self._builds0[1]),
+                           auto=self.auto)
 
 
 class _InProcess:

@@ -93,7 +93,7 @@ class EMBER_RENDER_PT_light_paths(EmberRenderPanel, bpy.types.Panel):
         layout.use_property_decorate = False
         settings = context.scene.ember
         layout.prop(settings, "max_depth")
-        path_only = settings.integrator == 'PATH'
+        path_only = settings.integrator in ('PATH', 'AUTO')  # auto: these make it choose the path tracer
         col = layout.column(heading="Bounces", align=True)
         col.active = path_only  # the photon integrators use Max Bounces alone
         col.prop(settings, "diffuse_bounces")
@@ -157,7 +157,7 @@ class EMBER_OBJECT_PT_visibility(bpy.types.Panel):
         if ob.type == 'MESH':
             col.prop(ob, "visible_shadow", text="Shadow")
             layout.prop(ob, "is_holdout")
-        if context.scene.ember.integrator != 'PATH':
+        if context.scene.ember.integrator not in ('PATH', 'AUTO'):
             layout.label(text="Ray visibility applies to Path Tracing only", icon='INFO')
 
 
@@ -207,7 +207,7 @@ class EMBER_RENDER_PT_photons(EmberRenderPanel, bpy.types.Panel):
 
     @classmethod
     def poll(cls, context):
-        return super().poll(context) and context.scene.ember.integrator in ('PHOTON', 'PPM')
+        return super().poll(context) and context.scene.ember.integrator in ('PHOTON', 'PPM', 'AUTO')
 
     def draw(self, context):
         layout = self.layout
@@ -236,7 +236,7 @@ class EMBER_RENDER_PT_icache(EmberRenderPanel, bpy.types.Panel):
 
     @classmethod
     def poll(cls, context):
-        return super().poll(context) and context.scene.ember.integrator == 'ICACHE'
+        return super().poll(context) and context.scene.ember.integrator in ('ICACHE', 'AUTO')
 
     def draw(self, context):
         layout = self.layout

@@ -55,7 +55,7 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
         name="Integrator",
         description="Method used to compute light transport",
         items=INTEGRATOR_ITEMS,
-        default='PATH',
+        default='AUTO',  # the analysis and the choice's reasons are in the render's stats
     )
     samples: IntProperty(
         name="Samples",

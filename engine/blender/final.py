@@ -237,6 +237,8 @@ def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
     session = RenderSession(scene)
     for w in getattr(session, "warnings", ()) or ():
         _report_once(engine, 'WARNING', str(w))
+    for line in getattr(session, "auto", ()):  # integrator auto: its choice, the analysis, what it left out
+        _report_once(engine, 'INFO', f"Ember: {line}")
 
     loop = _Loop(engine, writer, _layer_prefix(depsgraph, layer))
     stats = session.run(on_update=loop.on_update, should_stop=loop.should_stop)
@@ -258,6 +260,8 @@ def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
     engine.update_stats("", loop.prefix + summary)
     _notify("on_run_done", layer, stats)  # a terminal progress bar ends before the summary line
     print(f"{summary} (view layer '{layer}')", flush=True)
+    for line in stats.auto[1:]:  # the analysis and what was left out (the choice is in the summary)
+        print(f"Ember analysis: {line}", flush=True)
     return stats, image
 
 

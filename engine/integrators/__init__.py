@@ -2,16 +2,20 @@
 exporter and validation all derive from it."""
 from __future__ import annotations
 
+from . import auto
 from .irradiance.integrator import IrradianceCacheIntegrator
 from .path import PathIntegrator
 from .photon.integrator import PhotonIntegrator
 from .photon.ppm import ProgressivePhotonIntegrator
 
 REGISTRY = {cls.name: cls for cls in (PathIntegrator, PhotonIntegrator, ProgressivePhotonIntegrator,
-                                      IrradianceCacheIntegrator)}
+                                      IrradianceCacheIntegrator, auto.AutoIntegrator)}
 NAMES = tuple(REGISTRY)
 
 
 def create(scene):
-    """The integrator object named by scene.settings.integrator."""
+    """The integrator object named by scene.settings.integrator ("auto": the one it chooses;
+    the session resolves it once, before anything is built)."""
+    if scene.settings.integrator == auto.AutoIntegrator.name:
+        scene = auto.resolve(scene).scene
     return REGISTRY[scene.settings.integrator](scene)
