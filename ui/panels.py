@@ -207,7 +207,7 @@ class EMBER_RENDER_PT_photons(EmberRenderPanel, bpy.types.Panel):
 
     @classmethod
     def poll(cls, context):
-        return super().poll(context) and context.scene.ember.integrator in ('PHOTON', 'PPM', 'AUTO')
+        return super().poll(context) and context.scene.ember.integrator in ('PHOTON', 'PPM', 'PATH_CAUSTIC', 'AUTO')
 
     def draw(self, context):
         layout = self.layout

@@ -3,13 +3,14 @@ exporter and validation all derive from it."""
 from __future__ import annotations
 
 from . import auto
+from .photon.caustic_path import CausticPathIntegrator
 from .irradiance.integrator import IrradianceCacheIntegrator
 from .path import PathIntegrator
 from .photon.integrator import PhotonIntegrator
 from .photon.ppm import ProgressivePhotonIntegrator
 
 REGISTRY = {cls.name: cls for cls in (PathIntegrator, PhotonIntegrator, ProgressivePhotonIntegrator,
-                                      IrradianceCacheIntegrator, auto.AutoIntegrator)}
+                                      IrradianceCacheIntegrator, CausticPathIntegrator, auto.AutoIntegrator)}
 NAMES = tuple(REGISTRY)
 
 
