@@ -23,7 +23,8 @@ and photon tracer the integrators use:
 - caustics (L S+ D): possible when specular surfaces and lights exist; a pilot of photons
   (the photon map's own tracer) measures the share of the flux arriving at diffuse surfaces
   that came through specular bounces only.
-- sizes: triangles, surface area, texture images and texels, environment texels.
+- sizes: triangles, surface area, texture images and texels, environment texels, and a
+  pixel's width at the camera's first hits (median; what search radii compare with).
 
 Nothing here chooses an integrator: `auto` reads the figures. Every pilot is seeded (the
 figures are reproducible) and skipped when it cannot find anything (no geometry, no light,
@@ -79,6 +80,7 @@ class SceneAnalysis:
     caustics_possible: bool  # specular surfaces and a light
     caustic_share: float  # pilot: flux at diffuse surfaces that came via specular bounces only
     camera_escape_share: float  # camera rays that hit nothing
+    pixel_footprint: float  # m: median width of a pixel at the camera's first hits
     escape_share: float  # probe rays from the first hits that hit nothing
     indirect_ratio: float  # indirect / direct radiance at the first diffuse hits
     pilot_rays: int  # every ray the pilots traced (camera, probes, paths, shadows, photons)
@@ -194,6 +196,17 @@ def _camera_rays(scene: Scene, n: int, seed: int):
     return sampler, o, d, tmax
 
 
+def _footprint(scene, hit) -> float:
+    """Median width (m) of a pixel where camera rays first hit (perspective: distance x the
+    pixel's angle; orthographic: the window's width over the pixels)."""
+    left, right = scene.camera.window[:2]
+    pixel = abs(right - left) / max(scene.settings.width, 1)
+    t = hit.t[hit.prim >= 0]
+    if len(t) == 0:
+        return float("nan")
+    return float(pixel if scene.camera.ortho else np.median(t) * pixel)
+
+
 def _escape_pilot(scene, accel, hit, d, seed, probes=4):
     """Share of cosine-distributed probe rays from the first hits that escape."""
     rows = np.flatnonzero(hit.prim >= 0)
@@ -260,7 +273,7 @@ def analyse(scene: Scene, pilot_rays: int = 4096, pilot_photons: int = 16384, se
     caustics_possible = shares["specular"] > 0 and has_light
     skipped = []
     nan = float("nan")
-    camera_escape = escape = indirect = caustic = nan
+    camera_escape = escape = indirect = caustic = footprint = nan
     n_rays = n_photons = 0
     if mesh.n_triangles == 0:
         skipped.append("no pilots: the scene has no geometry")
@@ -268,6 +281,7 @@ def analyse(scene: Scene, pilot_rays: int = 4096, pilot_photons: int = 16384, se
         sampler, o, d, tmax = _camera_rays(scene, pilot_rays, seed)
         hit = accel.intersect(o.astype(np.float32), d, tmax, None)
         camera_escape = float(np.mean(hit.prim < 0))
+        footprint = _footprint(scene, hit)
         escape = _escape_pilot(scene, accel, hit, d, seed)
         if not has_light:
             skipped.append("no indirect-light pilot: the scene has no light")
@@ -296,7 +310,7 @@ def analyse(scene: Scene, pilot_rays: int = 4096, pilot_photons: int = 16384, se
         light_kinds=tuple(sorted(kinds)), light_counts=counts, light_power=light_power,
         diffuse_share=shares["diffuse"], glossy_share=shares["glossy"], specular_share=shares["specular"],
         transparent_share=shares["transparent"], caustics_possible=bool(caustics_possible), caustic_share=caustic,
-        camera_escape_share=camera_escape, escape_share=escape, indirect_ratio=indirect,
+        camera_escape_share=camera_escape, pixel_footprint=footprint, escape_share=escape, indirect_ratio=indirect,
         pilot_rays=n_rays, pilot_photons=n_photons, skipped=tuple(skipped))
     figures["seconds"] = time.perf_counter() - t0
     return SceneAnalysis(summary=_summary(figures), **figures)
@@ -336,8 +350,9 @@ def _summary(f: dict) -> str:
                      f"({_pct(f['camera_escape_share'])} of camera rays see the background)")
     if np.isfinite(f["indirect_ratio"]):
         lines.append(f"indirect / direct light at the first diffuse hits: {f['indirect_ratio']:.2f}")
-    lines.append(f"geometry: {f['n_triangles']} triangles, radius {f['scene_radius']:.3g} m; textures: "
-                 f"{f['n_images']} images, {f['texture_texels']} texels; environment {f['environment_texels']} texels")
+    lines.append(f"geometry: {f['n_triangles']} triangles, radius {f['scene_radius']:.3g} m, a pixel {f['pixel_footprint']:.2g} m "
+                 f"wide at the first hits; textures: {f['n_images']} images, {f['texture_texels']} texels; "
+                 f"environment {f['environment_texels']} texels")
     lines += list(f["skipped"])
     lines.append(f"analysis: {f['pilot_rays']} pilot rays, {f['pilot_photons']} photons, {f['seconds']:.2f} s")
     return "\n".join(lines)

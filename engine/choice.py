@@ -12,6 +12,12 @@ along paths it samples badly (the caustic of a small or point light: 15x the pho
 error at 8 s) or where diffuse interreflection dominates (the interior at 64x64: 4.5x the
 irradiance cache's error at 8 s, equal at 30 s). The Cornell box, open at the front (28 % of
 probe rays escape), sits between: the cache wins at 8 s (1.6x), the path tracer at 30 s (2.1x).
+For caustics, path tracing with a caustic map (`path_caustic`) beat `photon` at 30 s (caustic
+7.2e-3 against 1.0e-2, caustic_point 5.3e-3 against 5.7e-3, at a load of 9) but lost 4-7x at
+8 s on caustic_point (2.7e-2 - 4.3e-2 against 6.1e-3: a path tracer's early noise against
+final gathering's smooth estimate), so `photon` is the choice that holds at both budgets.
+Its 4 gather rays where indirect light is weak: the caustic scene's error fell 3.4x at 8 s
+and 1.4x at 30 s against 16 (bench/results/photon/notes.md, "tuned_photon_4_gather").
 A setting the user changed from its default is never overridden; an integrator chosen by
 name is not analysed at all.
 """

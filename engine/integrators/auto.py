@@ -12,13 +12,11 @@ from dataclasses import dataclass
 
 from ..scene import Scene
 from .base import Integrator
-from .photon.caustic_path import CausticPathIntegrator
 from .irradiance.integrator import IrradianceCacheIntegrator
 from .path import PathIntegrator
 from .photon.integrator import PhotonIntegrator
 
-CANDIDATES = {cls.name: cls for cls in (PathIntegrator, PhotonIntegrator, IrradianceCacheIntegrator,
-                                        CausticPathIntegrator)}
+CANDIDATES = {cls.name: cls for cls in (PathIntegrator, PhotonIntegrator, IrradianceCacheIntegrator)}
 
 
 @dataclass(frozen=True)
