@@ -631,6 +631,7 @@ def exr_metadata(stats, digest: str, border, frame: int, layer: str) -> dict:
         "ember/renderSeconds": float(stats.elapsed), "ember/stoppedBy": stats.stopped_by or "done",
         "ember/border": list(border), "ember/frame": int(frame), "ember/viewLayer": layer,
         "ember/sceneDigest": digest,
+        **({"ember/auto": stats.auto[0]} if getattr(stats, "auto", ()) else {}),
     }
 
 

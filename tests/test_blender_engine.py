@@ -485,13 +485,13 @@ def test_properties_defaults_and_limits():
     try:
         e = sc.ember
         assert (e.integrator, e.samples, e.max_depth, e.seed, e.time_limit, e.batch_size, e.pattern) == \
-            ('PATH', 64, 64, 0, 0.0, 131072, 'SOBOL')
+            ('AUTO', 64, 64, 0, 0.0, 131072, 'SOBOL')
         props = type(e).bl_rna.properties
         assert props["samples"].hard_min == 1
         assert (props["max_depth"].hard_min, props["max_depth"].hard_max) == (1, 1024)
         assert props["time_limit"].hard_min == 0.0
         assert props["batch_size"].hard_min == 1024
-        assert [i.identifier for i in props["integrator"].enum_items] == ['PATH', 'PHOTON', 'PPM', 'ICACHE']  # the registry's order
+        assert [i.identifier for i in props["integrator"].enum_items] == ['PATH', 'PHOTON', 'PPM', 'ICACHE', 'PATH_CAUSTIC', 'AUTO']  # the registry's order
         e.samples = 0
         assert e.samples == 1  # clamped
     finally:

@@ -187,10 +187,15 @@ def _version() -> str:
 
 def metadata(settings, stats) -> dict:
     """The render's facts for Blender's image header (stamp fields, so its multilayer EXR
-    carries them), under the keys render.py's EXR uses."""
-    return {"ember/engine": "Ember", "ember/version": _version(), "ember/integrator": settings.integrator,
-            "ember/samples": str(stats.samples), "ember/seed": str(settings.seed),
-            "ember/renderSeconds": f"{stats.elapsed:.3f}"}
+    carries them), under the keys render.py's EXR uses. The integrator is the one that
+    rendered (what `auto` chose; "ember/auto" then holds its reasons)."""
+    rendered = getattr(stats, "settings", None) or settings
+    out = {"ember/engine": "Ember", "ember/version": _version(), "ember/integrator": rendered.integrator,
+           "ember/samples": str(stats.samples), "ember/seed": str(settings.seed),
+           "ember/renderSeconds": f"{stats.elapsed:.3f}"}
+    if getattr(stats, "auto", ()):
+        out["ember/auto"] = stats.auto[0]
+    return out
 
 
 def _layer_prefix(depsgraph, layer: str) -> str:
