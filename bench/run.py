@@ -201,6 +201,7 @@ def bench_scene(bs, args, budgets, integrators, resolution, images=None):
                        "other_s": r.wall_seconds - r.export_seconds - r.session_seconds},
             "stage_seconds": dict(st.stage_seconds), "counters": {k: str(v) for k, v in st.counters.items()},
             "integrator": integ, "overrides": overrides, "settings": _integrator_settings(scene),
+            "auto": list(getattr(st, "auto", ())),  # integrator auto: its choice, the analysis, what it left out
             "film_nonfinite_samples": int(st.nonfinite), "stopped_by": st.stopped_by,
             "load": [load0, _load()]}
         print(f"  ember:{label}: {r.snapshots[-1].samples:.0f} spp in {st.elapsed:.1f} s, "

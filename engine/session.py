@@ -101,10 +101,11 @@ class RenderSession:
         validate(scene)
         scene = recentred(scene)  # far from the world origin: render about the scene's centre
         t0 = time.perf_counter()
-        self.auto = ()
+        self.auto, self.analysis_seconds = (), 0.0
         if scene.settings.integrator == integrators.auto.AutoIntegrator.name:  # analyse and choose, once
             resolved = integrators.auto.resolve(scene)
             scene, self.auto = resolved.scene, resolved.lines
+            self.analysis_seconds = time.perf_counter() - t0
         self.warnings: list[str] = []
         if scene.settings.noise_target > 0 and not integrators.REGISTRY[scene.settings.integrator].noise_target:
             self.warnings.append(f"The noise target does not apply to the '{scene.settings.integrator}' integrator "
@@ -189,6 +190,8 @@ class RenderSession:
             left = int((~run.active.converged).sum())
             counters["adaptive"] = (f"adaptive: {left} of {self.layout.n_pixels} pixels active at the end, "
                                     f"{self.film.count[self.layout.pixel].mean():.1f} samples per pixel on average")
+        if self.auto:  # the analysis ran in __init__, before any stage
+            run.stage_seconds = {"analysis": self.analysis_seconds, **run.stage_seconds}
         return RenderStats(samples=run.passes, elapsed=elapsed, rays=run.rays,
                            rays_per_second=run.rays / max(elapsed, 1e-9), embree_seconds=run.embree_seconds,
                            build_seconds=self.build_seconds, cancelled=run.cancelled, noise=noise,
