@@ -67,7 +67,7 @@ def validate(scene: Scene) -> None:
 # already chooses lights by |power|). They need to keep negative contributions (the path
 # tracer drops emission and light samples that are not > 0); until one is listed here,
 # negative lights are refused for it rather than silently dropped.
-NEGATIVE_LIGHT_INTEGRATORS: frozenset = frozenset({"path"})
+NEGATIVE_LIGHT_INTEGRATORS: frozenset = frozenset({"path", "auto"})  # auto then chooses path
 
 
 def _names(names, limit=5) -> str:

@@ -1,6 +1,8 @@
 """Integrator `auto` (engine/integrators/auto.py, engine/choice.py): on the hand-built scenes of
 test_analysis it picks what the rule says, with the reasons in the stats, keeps what the user
 set, and the render builds nothing the scene does not use."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -48,9 +50,13 @@ def test_parameters_from_the_analysis_and_the_users_win():
     (dict(clamp_indirect=10.0), "uses what only the path tracer honours: per-kind bounce limits or clamping"),
     (dict(passes=("Diffuse Direct",)), "uses what only the path tracer honours: light passes"),
     (dict(sample_offset=4), "'icache' would fit, but the render asks for a sample offset"),
+    ("negative", "uses what only the path tracer honours: negative light"),
 ])
 def test_settings_that_only_the_path_tracer_honours_choose_it(override, reason):
-    r = auto.resolve(_auto(closed_interior(), **override))
+    scene = closed_interior()
+    if override == "negative":
+        scene, override = scene.replace(lights=dataclasses.replace(scene.lights, Le=-scene.lights.Le)), {}
+    r = auto.resolve(_auto(scene, **override))
     assert r.scene.settings.integrator == "path" and reason in r.lines[0]
 
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..scene import Scene
 from .base import Integrator
 from .irradiance.integrator import IrradianceCacheIntegrator
@@ -66,6 +68,10 @@ def _path_only(scene: Scene) -> tuple:
     from ..validation import path_only_warnings
 
     out = []
+    w = scene.world
+    if (np.any(scene.lights.Le < 0) or np.any(scene.materials.emission < 0) or np.any(w.color < 0)
+            or (w.image is not None and np.min(w.image) < 0)):
+        out.append("negative light")
     if any(n in passes_mod.LIGHT for n in passes_mod.needed(scene.settings.passes)):
         out.append("light passes")
     probe = scene.replace(settings=scene.settings.replace(integrator="photon"))
