@@ -166,6 +166,7 @@ def _render_blend(bpy, blend, size, samples, seed=1):
     sc.render.engine = "EMBER"
     sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = size[1], size[0], 100
     sc.ember.samples, sc.ember.seed, sc.ember.pattern = samples, seed, "RANDOM"
+    sc.ember.integrator = 'PATH'  # the unbiased one these z-tests are for (the default, auto, may choose photon)
     grab = _Grab()
     final.listeners.append(grab)
     try:

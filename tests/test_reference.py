@@ -67,6 +67,7 @@ def render_with_ember(blend, width, height, samples, seed=1):
     sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = width, height, 100
     sc.ember.samples = samples
     sc.ember.seed = seed
+    sc.ember.integrator = 'PATH'  # the unbiased one these z-tests are for (the default, auto, may choose another)
     grab = _Film()
     final.listeners.append(grab)
     try:
