@@ -873,6 +873,8 @@ def _run_farm(args, argv, blend, output, kind, scene, frames, t_start) -> int:
     frames = frames if numbered else [scene.frame_current]
     tasks = farm.plan(frames, scene.ember.samples, scene.ember.sample_offset, args.chunk_samples or 0)
     options = task_options(argv)
+    if str(scene.ember.integrator) == "AUTO" and len(tasks) > len(frames):
+        options += _auto_for_parts(scene)
     if args.scheduler.startswith("local:"):
         try:
             n = int(args.scheduler.split(":", 1)[1])
@@ -928,6 +930,25 @@ def _run_farm(args, argv, blend, output, kind, scene, frames, t_start) -> int:
             cluster.close()
     print(f"Ember: {len(frames)} frames in {time.perf_counter() - t_start:.2f} s on {args.scheduler}", flush=True)
     return EXIT_OK
+
+
+def _auto_for_parts(scene) -> list[str]:
+    """Options that give every part of a frame split into sample ranges the integrator and
+    parameters `auto` chooses once, here, for a render of sample ranges (each part deciding
+    alone, the part at offset 0 could take one that cannot be split and the others another)."""
+    import bpy
+    from ember.engine.blender.export import export_scene
+    from ember.engine.integrators import auto
+
+    exported, _ = export_scene(bpy.context.evaluated_depsgraph_get())
+    s = exported.settings
+    resolved = auto.resolve(exported.replace(settings=s.replace(sample_offset=max(s.sample_offset, 1))))
+    print(f"Ember: {resolved.lines[0]} (once, for every part)", flush=True)
+    flag = {prop: option for option, prop, _, _ in PHOTON_OPTIONS}
+    out = ["--integrator", resolved.scene.settings.integrator]
+    for name, value in resolved.choice.settings.items():
+        out += [flag[name], str(value)]
+    return out
 
 
 def _write_farm_frame(path, datas, imageio, Part, merge) -> None:
