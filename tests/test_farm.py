@@ -44,6 +44,8 @@ def test_animation_and_split_frames_on_a_local_cluster(farm_dir):
                               cwd=d, env=_env(d), capture_output=True, text=True, timeout=180)
         assert proc.returncode == 0, proc.stderr[-3000:]
         assert f"frame {frames} -> " in proc.stdout
+        # auto (the default) chooses once for the parts of a split frame, not per part
+        assert ("auto chose" in proc.stdout and "(once, for every part)" in proc.stdout) == (chunk == "8")
     whole, _ = read(d / "farm_whole_1.exr")
     np.testing.assert_array_equal(whole, read(d / "local_1.exr")[0])
     split, header = read(d / "farm_split_2.exr")
