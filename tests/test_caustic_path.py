@@ -6,7 +6,7 @@ twice or not at all is 30-50 % off); without specular surfaces it is the path tr
 import numpy as np
 
 from core_scenes import box_quads, perspective, quads_mesh, settings
-from ember.engine.scene import LIGHT_RECT, LOBE_DIELECTRIC, MAT_DIFFUSE, Lights, Materials, Mesh, Scene, World
+from ember.engine.scene import LIGHT_RECT, LOBE_DIELECTRIC, MAT_DIFFUSE, Lights, Materials, Scene, World
 from ember.engine.session import RenderSession
 
 REGION = (slice(12, 20), slice(8, 16))  # floor under the slab's middle

@@ -1,4 +1,4 @@
-"""Path tracing with a caustic photon map (issue 11: what `auto` picks for caustics of small lights).
+"""Path tracing with a caustic photon map (issue 11; `auto` prefers `photon`, see engine/choice.py).
 
 A path tracer finds the light that glass and mirrors focus onto a diffuse surface (L S+ D)
 only when a path leaving that surface through the specular chain happens to hit the light:
@@ -10,13 +10,12 @@ exactly that light. Here the two split the light at a camera path's first diffus
              only: the photon tracer's caustic photons);
   direct     one light sample at x, combined by the balance heuristic with the BSDF sample
              below when it hits an emitter directly;
-  the rest   the BSDF sample at x is followed through specular surfaces collecting nothing
-             (that light is the caustic map's) to the first diffuse point y, from which the
-             path tracer takes over, leaving out y's own emission (a photon that left y and
-             crossed the chain is a caustic photon too).
+  the rest   the path tracer from x along the same BSDF sample, collecting nothing until it
+             reaches a diffuse point y (PathTracer.trace's caustic_ends: that light is the
+             caustic map's, y's own emission too - a photon that left y and crossed the
+             specular chain is a caustic photon).
 
-Everything beyond y, and every diffuse surface the camera does not see through specular
-surfaces first, is path traced: no global map, no final gathering. Biased only by the
+Everything from y on is path traced: no global map, no final gathering. Biased only by the
 caustic map's blur; consistent as caustic photons grow.
 """
 from __future__ import annotations
@@ -25,13 +24,10 @@ import numpy as np
 
 from ... import rng
 from ...accel import offset_origin
-from ...vec import gatherer, max3, take
+from ...vec import gatherer, take
 from .integrator import _GROUPS, _LIGHT, PhotonIntegrator, _accumulate, _sample_rows
 from ..path import PathTracer
-from ..surface import shading_frame, towards
-from ...bsdf.closure import make_closure
-
-
+from ..surface import towards
 
 
 class CausticPathIntegrator(PhotonIntegrator):
@@ -75,45 +71,12 @@ class CausticPathIntegrator(PhotonIntegrator):
         beta_g = take(bx, g) * take(bs.weight, g)
         _accumulate(L, rows, self._trace_gather(gs, len(x), g, beta_g, d, o64, o32, prim[x[g]],
                                                 (bs.pdf[g], bs.delta[g]), emission_only=True))
-        # The path tracer's numbers: the GATHER stream at pixels W*H and up (nothing else uses them).
-        ps = lambda r: rng.Sampler(s.seed, pixel[rows][r] + s.width * s.height, sample[rows][r], s.pattern,  # noqa: E731
-                                   domain=rng.GATHER)
-        _accumulate(L, rows, self._beyond(gs, ps, len(x), g, beta_g, d, o64, o32, prim[x[g]],
-                                          max(s.max_depth - depth - 1, 0)))
-
-    def _beyond(self, gs, ps, K, g, beta, d, o64, o32, skip, budget):
-        """Radiance (K,3) x beta that the first diffuse surface y along each ray (rows g of K)
-        reflects back, following specular surfaces on the way without collecting light; from
-        y on the path tracer (ps(rows of K): its sampler), without y's emission. gs: the
-        chain's BSDF groups (from 1); budget: bounces left."""
-        scene, mesh = self.scene, self.scene.mesh
-        out = np.zeros((K, 3))
-        for k in range(budget + 1):
-            if len(g) == 0:
-                break
-            hit = self.ctx.accel.intersect(o32, d, None, skip)
-            keep = np.flatnonzero(hit.prim >= 0)
-            mat = mesh.material[hit.prim[keep]]
-            y = keep[self.stores[mat]]
-            if len(y):  # the path tracer re-traces the ray to y (first_emission False: not y's light)
-                Ly = self.path_tracer.trace(ps(g[y]), take(o64, y), take(o32, y), take(d, y), None, skip[y],
-                                            first_emission=False, max_depth=max(budget - k - 1, 0))
-                np.add.at(out, g[y], take(beta, y) * Ly)
-            c = keep[~self.stores[mat]]
-            if len(c) == 0 or k == budget:
-                break
-            wo = -take(d, c)
-            prim_c = hit.prim[c]
-            ng_c, ns_c = shading_frame(mesh, self.flat_normal, prim_c, take(hit.b, c), take(hit.ng, c), wo)
-            bsdf_c = make_closure(scene, self.lambert_albedo, mesh.material[prim_c], ns_c, ng_c, wo, prim_c,
-                                  take(hit.b, c))
-            u = gs.get(1 + k, g[c], 3)
-            bc = bsdf_c.sample(u[:, :2], u[:, 2])
-            ok = np.flatnonzero(bc.valid & (max3(bc.weight) > 0))
-            g, beta = g[c[ok]], take(beta, c[ok]) * take(bc.weight, ok)
-            d = take(bc.wi, ok)
-            o64 = take(hit.p, c[ok])
-            o32 = offset_origin(o64, towards(take(ng_c, ok), d))
-            skip = prim_c[ok]
-        return out
+        # The rest of the path: the path tracer from x along the same sample, leaving out the
+        # light it finds before its first diffuse point (caustic_ends: the caustic map's, and
+        # what the BSDF sample above found directly). Its numbers: the GATHER stream at pixels
+        # W*H and up (nothing else uses them).
+        ps = rng.Sampler(s.seed, pixel[rows][g] + s.width * s.height, sample[rows][g], s.pattern, domain=rng.GATHER)
+        Lp = self.path_tracer.trace(ps, o64, o32, d, None, prim[x[g]], max_depth=max(s.max_depth - depth - 1, 0),
+                                    caustic_ends=self.stores)
+        _accumulate(L, rows[g], beta_g * Lp)
 
