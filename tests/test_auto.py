@@ -98,5 +98,6 @@ def test_caustic_scene_builds_the_caustic_map_and_the_interior_none():
                                     border=(0, 0, 8, 8)))
     icache = session.tracer.integrator
     assert session.scene.settings.integrator == "icache" and icache.n_caustic_items == 0
-    assert len(icache.caustic_map) == 0 and len(icache.global_map) > 0
-    assert "no caustic map: no specular surface" in stats.auto and "no caustic map: no specular surface" in stats.summary()
+    assert icache.caustic_map is None and icache.global_map is None and "photons" not in stats.stage_seconds
+    assert "no caustic map: no specular surface" in stats.auto
+    assert "no global photon map: the records' gather rays trace paths" in stats.auto

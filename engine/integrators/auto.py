@@ -58,7 +58,7 @@ def resolve(scene: Scene) -> Resolved:
         choice = Choice("path", {}, (f"'{choice.integrator}' would fit, but the render asks for "
                                      f"{', '.join(unsupported)}, which it does not support",), ())
     chosen = scene.replace(settings=s.replace(integrator=choice.integrator, **choice.settings))
-    lines = (choice.text(), *a.summary.splitlines(), *choice.notes, *_left_out(a, choice))
+    lines = (choice.text(), *a.summary.splitlines(), *choice.notes, *_left_out(a, choice, chosen.settings))
     return Resolved(chosen, a, choice, lines)
 
 
@@ -80,7 +80,7 @@ def _path_only(scene: Scene) -> tuple:
     return tuple(out)
 
 
-def _left_out(a, choice) -> tuple:
+def _left_out(a, choice, settings) -> tuple:
     """Tables and maps the render does not build, and why (the photon integrators add their
     own: 'no caustic map: ...')."""
     out = []
@@ -91,4 +91,6 @@ def _left_out(a, choice) -> tuple:
         out.append("no light-sampling table: no lights")
     if choice.integrator == "path":
         out.append("no photon maps, no irradiance cache: path tracing")
+    if choice.integrator == "icache" and settings.icache_gather == "path":
+        out.append("no global photon map: the records' gather rays trace paths")
     return tuple(out)
