@@ -570,11 +570,16 @@ class LambertClosure:
         return out
 
     def sample(self, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
+        return self.sample_at(None, u)
+
+    def sample_at(self, rows, u: np.ndarray) -> BSDFSample:
+        """Samples at points rows (K,) (repeats allowed; None: all), uniforms u (K,2)."""
+        at = (lambda a: a) if rows is None else gatherer(rows, len(self.ns))  # noqa: E731
         local = diffuse.sample(u)
-        wi = sampling.to_world(local, self.t, self.b, self.ns)
-        ok = (dot(wi, self.ng) > 0) & (local[:, 2] > 0) & self.has_smooth
+        wi = sampling.to_world(local, at(self.t), at(self.b), at(self.ns))
+        ok = (dot(wi, at(self.ng)) > 0) & (local[:, 2] > 0) & (self.has_smooth if rows is None else self.has_smooth[rows])
         # f cos / pdf = albedo for cosine-weighted sampling of a Lambertian lobe.
-        weight = scale(self.albedo, ok)
+        weight = scale(at(self.albedo), ok)
         pdf = np.where(ok, diffuse.pdf(local[:, 2]), 0.0)
         return BSDFSample(wi=wi, weight=weight, pdf=pdf, delta=np.zeros(len(ok), bool), valid=ok,
                           label=np.full(len(ok), LABEL_DIFFUSE, np.int8))

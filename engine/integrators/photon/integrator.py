@@ -455,6 +455,8 @@ def _sample_rows(bsdf, pts, u):
     """BSDF samples at points pts (K,) (repeats allowed) of a closure built for N points."""
     from ...bsdf.closure import BSDFSample
 
+    if hasattr(bsdf, "sample_at"):  # sampled at any rows directly
+        return bsdf.sample_at(pts, u[:, :2])
     n = bsdf.n if hasattr(bsdf, "n") else len(bsdf.ns)
     # Sample all repeats by sampling the closure once per repeat round: rows of the same point
     # within one round are distinct, so each round is one call over unique points.
