@@ -56,3 +56,40 @@ def test_textured_or_layered_materials_take_the_general_path():
     albedo = plain_lambert_albedo(mats)
     assert np.array_equal(albedo[0], [0.5, 0.5, 0.5]) and np.isnan(albedo[1]).all()
     assert np.array_equal(albedo[2], [0, 0, 0])  # a pure emitter is black
+
+
+def test_plain_points_of_a_mixed_batch_get_the_fast_paths_numbers():
+    """A batch where some points are glossy: the plain Lambertian points still get exactly
+    LambertClosure's numbers (the general closure's differ by rounding), so a path's value
+    does not depend on what the other paths of its batch hit (batch size, regeneration)."""
+    from ember.engine.scene import LOBE_MICROFACET
+
+    rng = np.random.default_rng(5)
+    scene = furnace_box()
+    mats = Materials.make([dict(kind=MAT_DIFFUSE, base_color=(0.7, 0.7, 0.7)),
+                           dict(lobes=[dict(kind=LOBE_MICROFACET, roughness=0.3, color=(0.9, 0.9, 0.9))])])
+    scene = scene.replace(materials=mats)
+    n = 4000
+    mat = rng.integers(0, 2, n)
+    ns, ng, wo = _points(n, rng)
+    prim, bary = np.zeros(n, np.int64), np.full((n, 3), 1 / 3)
+    albedo = plain_lambert_albedo(mats)
+    mixed = make_closure(scene, albedo, mat, ns, ng, wo, prim, bary)
+    p = np.flatnonzero(mat == 0)
+    alone = make_closure(scene, albedo, mat[p], ns[p], ng[p], wo[p], prim[p], bary[p])
+    assert isinstance(alone, LambertClosure) and not isinstance(mixed, LambertClosure)
+    u, u_lobe = rng.random((n, 2)), rng.random(n)
+    a, b = mixed.sample(u, u_lobe), alone.sample(u[p], u_lobe[p])
+    for name in ("wi", "weight", "pdf", "valid", "delta", "label"):
+        assert np.array_equal(getattr(a, name)[p], getattr(b, name)), name
+    assert np.array_equal(mixed.reflectance[p], alone.reflectance)
+    assert np.array_equal(mixed.has_smooth[p], alone.has_smooth)
+    wi = rng.normal(size=(n, 3))
+    wi /= np.linalg.norm(wi, axis=1, keepdims=True)
+    (f1, p1), (f2, p2) = mixed.eval(wi, np.arange(n)), alone.eval(wi[p], np.arange(len(p)))
+    assert np.array_equal(f1[p], f2) and np.array_equal(p1[p], p2)
+    assert np.array_equal(mixed.eval_by_class(wi, np.arange(n))[p], alone.eval_by_class(wi[p], np.arange(len(p))))
+    # the glossy points are the general closure's
+    g = np.flatnonzero(mat == 1)
+    general = Closure(scene, mat, ns, ng, wo, prim, bary)
+    assert np.array_equal(a.weight[g], general.sample(u, u_lobe).weight[g])

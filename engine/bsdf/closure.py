@@ -585,14 +585,72 @@ class LambertClosure:
                           label=np.full(len(ok), LABEL_DIFFUSE, np.int8))
 
 
+class _MixedClosure(Closure):
+    """The general closure of a batch in which some points (`plain`) are plain Lambertian:
+    at those points every number is LambertClosure's, which equals the general closure's only
+    up to rounding. So a path's value never depends on what the other paths of its batch hit
+    (batch size, run-time unit sizes, path regeneration): the image stays bit for bit the same."""
+
+    def __init__(self, plain: np.ndarray, albedo: np.ndarray, scene, mat, ns, ng, *args):
+        super().__init__(scene, mat, ns, ng, *args)
+        self.plain = plain
+        self.lambert = LambertClosure(take(albedo, plain), take(ns, plain), take(ng, plain))
+        self.position = np.full(self.n, -1, np.int64)  # a point's row in self.lambert, or -1
+        self.position[plain] = np.arange(len(plain))
+        self.reflectance = self.reflectance.copy()
+        self.reflectance[plain] = self.lambert.reflectance
+        self.has_smooth = self.has_smooth.copy()
+        self.has_smooth[plain] = self.lambert.has_smooth
+
+    def _plain_of(self, rows):
+        """(K',) entries of rows that are plain points, (K',) their rows in self.lambert."""
+        pos = self.position[rows]
+        sel = np.flatnonzero(pos >= 0)
+        return sel, pos[sel]
+
+    def eval(self, wi: np.ndarray, rows: np.ndarray, visible=None):
+        f, p = super().eval(wi, rows, visible)
+        sel, pos = self._plain_of(rows)
+        if len(sel):
+            f[sel], p[sel] = self.lambert.eval(take(wi, sel), pos, None if visible is None else visible[sel])
+        return f, p
+
+    def eval_by_class(self, wi: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        out = super().eval_by_class(wi, rows)
+        sel, pos = self._plain_of(rows)
+        if len(sel):
+            out[sel] = self.lambert.eval_by_class(take(wi, sel), pos)
+        return out
+
+    def albedo_by_class(self) -> np.ndarray:
+        out = super().albedo_by_class()
+        out[self.plain] = self.lambert.albedo_by_class()
+        return out
+
+    def sample(self, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
+        bs = super().sample(u, u_lobe)
+        rows = self.plain
+        s = self.lambert.sample(take(u, rows), u_lobe[rows])
+        for name in ("wi", "weight", "pdf", "delta", "valid", "label"):
+            getattr(bs, name)[rows] = getattr(s, name)
+        if bs.refraction_eta2 is not None:
+            bs.refraction_eta2[rows] = 1.0
+        return bs
+
+
 def make_closure(scene: Scene, lambert_albedo: np.ndarray, mat, ns, ng, wo, prim, bary, no_caustics=None,
                  min_alpha=None):
-    """LambertClosure when every point's material is plain Lambertian, else the general Closure.
+    """LambertClosure when every point's material is plain Lambertian, else the general Closure
+    (with LambertClosure's numbers at the plain points of a mixed batch: _MixedClosure).
     lambert_albedo: plain_lambert_albedo(scene.materials), computed once per render;
     no_caustics, min_alpha: see Closure (nothing to drop or blur in a Lambertian)."""
     albedo = take(lambert_albedo, mat)
-    if not np.isnan(albedo).any():
+    plain = ~np.isnan(albedo[:, 0])
+    if plain.all():
         return LambertClosure(albedo, ns, ng)
+    if plain.any():
+        return _MixedClosure(np.flatnonzero(plain), albedo, scene, mat, ns, ng, wo, prim, bary, no_caustics,
+                             min_alpha)
     return Closure(scene, mat, ns, ng, wo, prim, bary, no_caustics, min_alpha)
 
 
