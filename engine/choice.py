@@ -3,15 +3,17 @@ its parameters and the reasons (issue 11).
 
     no light, or controls only the path tracer honours      -> path
     caustics (L S+ D) from small or point lights             -> photon (caustic map, final gathering)
-    enclosed, diffuse, indirect light >= direct              -> icache (photon map + irradiance cache)
+    mostly closed, diffuse, strong indirect light            -> icache (irradiance cache)
     anything else (open scenes under a sky, glossy scenes)   -> path
 
-Measured on the bench scenes (README "Automatic choice"): the path tracer wins where its noise
-falls fast - open scenes, mostly direct light, glossy surfaces - and loses where light arrives
-along paths it samples badly (the caustic of a small or point light: 15x the photon map's
-error at 8 s) or where diffuse interreflection dominates (the interior at 64x64: 4.5x the
-irradiance cache's error at 8 s, equal at 30 s). The Cornell box, open at the front (28 % of
-probe rays escape), sits between: the cache wins at 8 s (1.6x), the path tracer at 30 s (2.1x).
+Measured on the bench scenes at 64x64 (README "Automatic choice"): the path tracer wins where
+its noise falls fast - open scenes under a sky (hdri: 6-17x less error than the cache at 8 and
+30 s), mostly direct light - and loses where light arrives along paths it samples badly (the
+caustic of a small or point light: 15x the photon map's error at 8 s) or where diffuse
+interreflection dominates: with records refined between pass blocks and path-traced gathers
+the irradiance cache beat it on the interior (4.5x at 8 s), on the Cornell box, open at the
+front (28 % of probe rays escape; 1.2x at 8 s, 1.1x at 30 s), and on its hard variants (a
+light 5 mm from a wall: 5x at both budgets; a 1 cm light: 70x and 47x).
 For caustics, path tracing with a caustic map (`path_caustic`) beat `photon` at 30 s (caustic
 7.2e-3 against 1.0e-2, caustic_point 5.3e-3 against 5.7e-3, at a load of 9) but lost 4-7x at
 8 s on caustic_point (2.7e-2 - 4.3e-2 against 6.1e-3: a path tracer's early noise against
@@ -30,8 +32,9 @@ from .analysis import SceneAnalysis
 CAUSTIC_SHARE = 0.01  # caustic light at diffuse surfaces worth a caustic map (pilot's share)
 SMALL_LIGHTS = ("delta", "tiny", "small")  # lights whose caustics a path tracer finds rarely or never
 SMALL_POWER = 0.5  # ... carrying at least this share of the light power
-DIFFUSE_SHARE = 0.8  # of the surface area (albedo-weighted): the irradiance cache's domain
-INDIRECT_HEAVY = 1.0  # indirect / direct light at the first diffuse hits
+DIFFUSE_SHARE = 0.9  # of the surface area (albedo-weighted): the irradiance cache's domain
+INDIRECT_HEAVY = 0.5  # indirect / direct light at the first diffuse hits
+MOSTLY_CLOSED = 0.5  # share of escaping probe rays below which interreflection matters
 FEW_GATHER_RAYS, FEW_GATHER_BELOW = 4, 0.5  # photon: gather rays where indirect / direct is below
 
 
@@ -69,9 +72,11 @@ def choose(a: SceneAnalysis, settings, path_only: tuple = ()) -> Choice:
             params["gather_rays"] = (FEW_GATHER_RAYS, f"{FEW_GATHER_RAYS} gather rays: indirect light is "
                                                       f"{_pct(a.indirect_ratio)} of direct")
         return _chosen("photon", params, reasons, s)
-    if a.enclosed and a.diffuse_share >= DIFFUSE_SHARE and a.indirect_ratio >= INDIRECT_HEAVY:
-        reasons = (f"enclosed ({_pct(a.escape_share)} of probe rays escape), diffuse ({_pct(a.diffuse_share)} of the "
-                   f"area), indirect light {a.indirect_ratio:.1f}x direct: irradiance cache on a photon map",)
+    closed = a.escape_share < MOSTLY_CLOSED
+    if closed and a.diffuse_share >= DIFFUSE_SHARE and a.indirect_ratio >= INDIRECT_HEAVY:
+        reasons = (f"{'enclosed' if a.enclosed else 'mostly closed'} ({_pct(a.escape_share)} of probe rays escape), "
+                   f"diffuse ({_pct(a.diffuse_share)} of the area), indirect light {a.indirect_ratio:.2f}x direct: "
+                   "irradiance cache",)
         params = {}
         if not a.caustics_possible or a.caustic_share == 0:
             params["caustic_photons"] = (0, "no caustic map: " + _no_caustics(a))
@@ -89,7 +94,7 @@ def _why_path(a: SceneAnalysis) -> str:
     if a.caustics_possible and a.caustic_share >= CAUSTIC_SHARE:
         return f"caustics ({_pct(a.caustic_share)} of the light) from large lights: path tracing finds them"
     why = []
-    if not a.enclosed:
+    if not a.escape_share < MOSTLY_CLOSED:
         sky = [k for k in a.light_kinds if k in ("environment", "constant", "sun")]
         why.append(f"open ({_pct(a.escape_share)} of probe rays escape" + (f", lit by {'/'.join(sky)})" if sky else ")"))
     if a.diffuse_share < DIFFUSE_SHARE:
