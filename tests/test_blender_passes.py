@@ -47,6 +47,7 @@ def _cornell(engine="EMBER", size=32, samples=4):
     sc.render.resolution_percentage = 100
     sc.ember.samples = samples
     sc.ember.seed = 3
+    sc.ember.integrator = 'PATH'  # the passes' integrator (auto, the default, picks icache for the Cornell box)
     return sc
 
 
