@@ -60,6 +60,8 @@ Irradiance cache (integrator icache; also reads the photon options):
     --icache-weight NAME ward or tabellion
     --icache-gather NAME photon (the global map) or path (path-traced gather rays)
     --icache-view NAME   full, or records (record positions as dots), indirect (the cache alone)
+    --icache-radiance on|off   radiance caching: rough glossy surfaces from the records too
+    --icache-radiance-order N  its spherical-harmonics order (2..8; 5 serves roughness >= 0.61)
 
 Merge: `render.py merge PART.exr ... --output OUT.exr` combines EXRs that render.py wrote of
 one frame - disjoint sample ranges (--sample-offset), tiles (--border) or both - weighting each
@@ -192,6 +194,8 @@ PHOTON_OPTIONS = (
     ("--icache-weight", "icache_weight", str, "irradiance cache: ward or tabellion"),
     ("--icache-gather", "icache_gather", str, "irradiance cache: photon or path"),
     ("--icache-view", "icache_view", str, "irradiance cache: full, records or indirect"),
+    ("--icache-radiance", "icache_radiance", _on_off, "on|off: radiance caching of rough glossy surfaces"),
+    ("--icache-radiance-order", "icache_radiance_order", _positive_int, "radiance cache: harmonics order (2..8)"),
 )
 ENUM_OPTIONS = ("photon_view", "photon_kernel", "icache_weight", "icache_gather", "icache_view")
 # Light-path options (path tracer), same form as PHOTON_OPTIONS.

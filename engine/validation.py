@@ -247,6 +247,7 @@ def photon_problems(s) -> list[str]:
 
 ICACHE_RAYS = (50, 2000)
 ICACHE_A = (0.05, 0.5)  # the seed recommends 0.1-0.35; a little either side for studies
+ICACHE_ORDER = (2, 8)  # radiance caching's harmonics order: 4 .. 64 coefficients per channel
 
 
 def icache_problems(s) -> list[str]:
@@ -257,6 +258,9 @@ def icache_problems(s) -> list[str]:
                         f"(got {s.icache_rays})")
     if not ICACHE_A[0] <= s.icache_a <= ICACHE_A[1]:
         problems.append(f"irradiance-cache accuracy a must be in {ICACHE_A[0]}-{ICACHE_A[1]} (got {s.icache_a})")
+    if not ICACHE_ORDER[0] <= s.icache_radiance_order <= ICACHE_ORDER[1]:
+        problems.append(f"radiance-cache harmonics order must be in {ICACHE_ORDER[0]}-{ICACHE_ORDER[1]} "
+                        f"(got {s.icache_radiance_order})")
     for name, value, allowed in (("weight", s.icache_weight, WEIGHTS), ("gather", s.icache_gather, GATHER_MODES),
                                  ("view", s.icache_view, ICACHE_VIEWS)):
         if value not in allowed:

@@ -6,6 +6,10 @@ Scenes (DIR/NAME.blend, DIR defaults to this folder):
   cornell_glossy   the Cornell box (scenes/build.py) with a GGX Glossy short block, a
                    Principled (dielectric specular over diffuse) tall block, a Principled
                    metallic mirror sphere, and a light of 4x the area at the same power
+  cornell_rough    the Cornell box with moderately rough glossy surfaces, for radiance caching
+                   (bench/radiance_cache.py): a GGX Glossy back wall (grey, roughness 0.7) and
+                   short block (gold, 0.75), a Principled floor (white, specular over diffuse,
+                   roughness 0.7) and tall block (0.8); the standard light
   glass_sphere     a sharp Glass BSDF sphere on a grey diffuse floor under a large area light
                    (large so the caustic under the sphere converges in Cycles too)
   textured_plane   a floor with a byte sRGB checker image (Mapping x3, Repeat, Linear) and a
@@ -130,6 +134,21 @@ def build_cornell_glossy():
     return scene
 
 
+def build_cornell_rough():
+    scene = base.build_cornell_box()
+    scene.name = "CornellRough"
+    box_filter(scene)
+    mats = {"BackWall": base.glossy_material("RoughGrey", (0.7, 0.7, 0.7), 0.7),
+            "ShortBlock": base.glossy_material("RoughGold", (0.9, 0.65, 0.3), 0.75),
+            "Floor": principled_material("RoughFloor", (0.7, 0.7, 0.7), 0.7)[0],
+            "TallBlock": principled_material("RoughCoated", (0.6, 0.6, 0.65), 0.8)[0]}
+    for name, mat in mats.items():
+        ob = bpy.data.objects[name]
+        ob.data.materials.clear()
+        ob.data.materials.append(mat)
+    return scene
+
+
 def build_glass_sphere():
     scene = base.new_empty_file()
     scene.name = "GlassSphere"
@@ -242,7 +261,7 @@ def build_veach_mis():
     return scene
 
 
-SCENES = {"cornell_glossy": build_cornell_glossy, "glass_sphere": build_glass_sphere,
+SCENES = {"cornell_glossy": build_cornell_glossy, "cornell_rough": build_cornell_rough, "glass_sphere": build_glass_sphere,
           "textured_plane": build_textured_plane, "veach_mis": build_veach_mis}
 
 

@@ -246,6 +246,10 @@ class EMBER_RENDER_PT_icache(EmberRenderPanel, bpy.types.Panel):
         col = layout.column()
         for name in ("icache_a", "icache_rays", "icache_gradients", "icache_weight", "icache_gather", "icache_view"):
             col.prop(settings, name)
+        col.prop(settings, "icache_radiance")
+        sub = col.column()
+        sub.active = settings.icache_radiance
+        sub.prop(settings, "icache_radiance_order")
         col = layout.column(heading="Photons")
         if settings.icache_gather == 'PHOTON':
             col.prop(settings, "photons")

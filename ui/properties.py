@@ -201,6 +201,19 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
         items=ICACHE_VIEW_ITEMS,
         default='FULL',
     )
+    icache_radiance: BoolProperty(
+        name="Radiance Caching",
+        description="Rough glossy surfaces also take their indirect light from the records, which then "
+                    "hold the incident radiance in spherical harmonics (Krivanek et al. 2005); sharper "
+                    "lobes keep final gathering",
+        default=False,
+    )
+    icache_radiance_order: IntProperty(
+        name="Harmonics Order",
+        description="Spherical-harmonics order of radiance records (order^2 coefficients). It sets the "
+                    "sharpest lobe cached: GGX roughness >= 0.67 / 0.61 / 0.56 at order 4 / 5 / 6",
+        default=5, min=2, max=8,
+    )
     # Light paths (path tracer). Limits count interactions like Max Bounces: Cycles' value + 1.
     diffuse_bounces: IntProperty(
         name="Diffuse",

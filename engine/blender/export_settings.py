@@ -25,6 +25,7 @@ _DEFAULTS = Settings()
 _EMBER_FIELDS = ("samples", "sample_offset", "max_depth", "seed", "time_limit", "noise_target", "batch_size",
                  "photons", "caustic_photons", "photon_k", "global_radius", "caustic_radius", "gather_rays",
                  "radiance_photons", "ppm_radius", "ppm_alpha", "icache_rays", "icache_a", "icache_gradients",
+                 "icache_radiance", "icache_radiance_order",
                  "diffuse_bounces", "glossy_bounces", "transmission_bounces", "transparent_bounces",
                  "caustics_reflective", "caustics_refractive", "clamp_direct", "clamp_indirect", "filter_glossy",
                  "adaptive_threshold", "adaptive_min_samples")

@@ -62,6 +62,8 @@ class Records:
     radius_unclamped (R,) the radius before the pixel-footprint clamps (after the gradient
     limit and neighbour clamping; default: radius); radius_min (R,) the footprint minimum
     (default 0). All radii finite and >= 0: cap them at the world-space maximum.
+    coeffs (R,B,C), coeffs_grad (R,B,C,3): the incident radiance in B world-space spherical
+    harmonics and its translational gradient (radiance caching, radiance.py); B = 0 without.
     """
 
     position: np.ndarray
@@ -72,6 +74,8 @@ class Records:
     grad_t: np.ndarray
     radius_unclamped: np.ndarray = None
     radius_min: np.ndarray = None
+    coeffs: np.ndarray = None
+    coeffs_grad: np.ndarray = None
 
     def __post_init__(self):
         def set_(name, value):                                  # the dataclass is frozen
@@ -86,8 +90,14 @@ class Records:
             set_("radius_min", np.zeros_like(self.radius))
         R = len(self.position)
         C = self.E.shape[1] if self.E.ndim == 2 else -1
+        if self.coeffs is None:
+            set_("coeffs", np.zeros((R, 0, max(C, 0))))
+        if self.coeffs_grad is None:
+            set_("coeffs_grad", np.zeros(self.coeffs.shape + (3,)))
+        B = self.coeffs.shape[1] if self.coeffs.ndim == 3 else -1
         shapes = dict(position=(R, 3), normal=(R, 3), E=(R, C), radius=(R,), grad_r=(R, C, 3),
-                      grad_t=(R, C, 3), radius_unclamped=(R,), radius_min=(R,))
+                      grad_t=(R, C, 3), radius_unclamped=(R,), radius_min=(R,), coeffs=(R, B, C),
+                      coeffs_grad=(R, B, C, 3))
         for name, shape in shapes.items():
             if getattr(self, name).shape != shape:
                 raise ValueError(f"Records.{name} must have shape {shape}, got "
@@ -109,7 +119,9 @@ class Records:
         return len(self.position)
 
     def concat(self, other):
-        """These records followed by other's."""
+        """These records followed by other's (an empty set takes the other's coefficient count)."""
+        if len(self) == 0 or len(other) == 0:
+            return other if len(self) == 0 else self
         return Records(**{f.name: np.concatenate([getattr(self, f.name), getattr(other, f.name)])
                           for f in fields(self)})
 

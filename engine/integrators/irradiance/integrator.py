@@ -29,8 +29,11 @@ Records are placed from the points of whole passes, in an order fixed by the poi
 indices, and each record's gather rays are numbered by the record and its level: the record
 set and the image do not depend on the batch size or the number of workers.
 
-Where the cache applies: surfaces with one diffuse lobe (textured or not). Any other surface
-is shaded as `photon` does (final gathering) or, with path-traced gathers, by path tracing.
+Where the cache applies: surfaces with one diffuse lobe (textured or not); with radiance
+caching on (icache_radiance, radiance.py), also surfaces whose whole BSDF is low-frequency
+(rough glossy), from the incident radiance the records hold in spherical harmonics. Any other
+surface is shaded as `photon` does (final gathering) or, with path-traced gathers, by path
+tracing.
 """
 from __future__ import annotations
 
@@ -50,6 +53,7 @@ from ..photon.integrator import PhotonIntegrator, _accumulate, _sample_rows
 from ..surface import towards
 from .cache import RecordOctree, Records, neighbour_clamp, spread_subset
 from .hemisphere import cell_directions, gradient_to_world, record_terms
+from . import radiance
 
 GATHER_MODES = ("photon", "path")
 ICACHE_VIEWS = ("full", "records", "indirect")
@@ -214,14 +218,16 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         n = self.record_level[i].astype(np.float64)
         mean = lambda old, add: (old[i] * n.reshape((-1,) + (1,) * (old.ndim - 1)) + add) / (  # noqa: E731
             n + 1).reshape((-1,) + (1,) * (old.ndim - 1))
-        E, grad_r, grad_t = r.E.copy(), r.grad_r.copy(), r.grad_t.copy()
+        E, grad_r, grad_t, coeffs, coeffs_grad = (a.copy() for a in (r.E, r.grad_r, r.grad_t, r.coeffs, r.coeffs_grad))
         # the translational gradient as the first set was kept: scaled down where the footprint
         # minimum raised the radius (_clamp_radius)
         shrink = np.minimum(1.0, np.divide(r.radius_unclamped[i], r.radius[i], out=np.ones(len(i)),
                                            where=r.radius[i] > 0))
         E[i], grad_r[i], grad_t[i] = mean(r.E, new["E"]), mean(r.grad_r, new["grad_r"]), \
             mean(r.grad_t, new["grad_t"] * shrink[:, None, None])
-        self.records = replace(r, E=E, grad_r=grad_r, grad_t=grad_t)
+        if "coeffs" in new:  # radiance caching: the coefficients too
+            coeffs[i], coeffs_grad[i] = mean(r.coeffs, new["coeffs"]), mean(r.coeffs_grad, new["coeffs_grad"])
+        self.records = replace(r, E=E, grad_r=grad_r, grad_t=grad_t, coeffs=coeffs, coeffs_grad=coeffs_grad)
         self.record_level[i] += 1
         self.octree = RecordOctree(self.records, self.scene.settings.icache_a, self.scene.settings.icache_weight)
 
@@ -240,6 +246,7 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
     def build(self, ctx) -> None:
         super().build(ctx)
         self.single_diffuse = single_diffuse_materials(self.scene.materials)
+        self._build_radiance()
         if self.scene.settings.icache_gather == "path":
             self.path_tracer = PathTracer(self.scene, ctx.accel, ctx.lights)
 
@@ -280,7 +287,7 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         """At cached points: direct light, caustics and the cached irradiance; elsewhere (other
         materials, points no record covers) what `photon` does."""
         s, mesh = self.scene.settings, self.scene.mesh
-        cached = self.single_diffuse[mesh.material[prim[x]]]
+        cached = self.cached_material[mesh.material[prim[x]]]
         c, rest = x[cached], x[~cached]
         if len(c):
             at = gatherer(c, len(idx))
@@ -339,12 +346,49 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         if s.icache_view == "records":
             _accumulate(L, rows, self._record_dots(at(p), footprint) + 0.5 * bx * albedo * E / np.pi)
             return
+        indirect = albedo * E * (1.0 / np.pi)
+        self._glossy_indirect(indirect, c, at, p, ns, prim, bsdf, sample, pixel, rows)
         if s.icache_view == "indirect":  # debug and studies: the cached term alone
-            _accumulate(L, rows, bx * albedo * E * (1.0 / np.pi))
+            _accumulate(L, rows, bx * indirect)
             return
         self._caustics_at(L, rows, c, bx, at, p, ng_f, bsdf)
         self._direct_emission(L, sampler, rows, c, bx, at, p, ng_f, ns, prim, bsdf, depth, sample, pixel)
-        _accumulate(L, rows, bx * albedo * E * (1.0 / np.pi))
+        _accumulate(L, rows, bx * indirect)
+
+    # --- radiance caching (radiance.py) ------------------------------------------------------
+    def _build_radiance(self):
+        """Which materials the records serve (cached_material), and the harmonics order the
+        records hold (0: no radiance caching, when it is off or no surface in view of it)."""
+        s, m = self.scene.settings, self.scene.materials
+        self.glossy_material = np.zeros(len(m.kind), bool)
+        if s.icache_radiance:
+            used = np.zeros(len(m.kind), bool)
+            used[np.unique(self.scene.mesh.material)] = True
+            self.glossy_material = radiance.cached_materials(m, s.icache_radiance_order) & ~self.single_diffuse & used
+        self.cached_material = self.single_diffuse | self.glossy_material
+        self.order = s.icache_radiance_order if self.glossy_material.any() else 0
+
+    def _glossy_indirect(self, indirect, c, at, p, ns, prim, bsdf, sample, pixel, rows):
+        """At the glossy cached points among c, replace indirect (K,3) by the dot product of the
+        interpolated incident-radiance coefficients with the BSDF's (radiance.py). The BSDF's
+        come from BSDF_SAMPLES samples, in the GATHER stream at pixels 2 W H and up (the
+        direct light's are at W H and up), sample = camera sample x Q + q."""
+        mesh = self.scene.mesh
+        g = np.flatnonzero(self.glossy_material[mesh.material[prim[c]]])
+        if len(g) == 0:
+            return
+        s = self.scene.settings
+        pg, ng = take(at(p), g), take(at(ns), g)
+        coeffs, _ = radiance.interpolate(self.octree, pg, ng, s.icache_gradients)
+        Q = radiance.BSDF_SAMPLES
+        u = rng.Sampler(s.seed, np.repeat(pixel[rows[g]] + 2 * s.width * s.height, Q),
+                        np.repeat(sample[rows[g]] * Q, Q) + np.tile(np.arange(Q), len(g)), s.pattern,
+                        domain=rng.GATHER).get(0, None, 3).reshape(len(g), Q, 3)
+
+        def draw(q):
+            bs = _sample_rows(bsdf, c[g], u[:, q])
+            return bs.wi, bs.weight * bs.valid[:, None]
+        indirect[g] = radiance.reflected(coeffs, radiance.bsdf_coefficients(self.order, draw))
 
     def _indirect_view(self) -> bool:
         return self.scene.settings.icache_view == "indirect"
@@ -422,11 +466,15 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
             Lr = self._trace_gather(sampler, K * MN, np.arange(K * MN), np.ones((K * MN, 3)), d, o64, o32, skip,
                                     t_first=t_first)
         E, R, grad_r, grad_t = record_terms(Lr.reshape(K, M, N, 3), t_first.reshape(K, M, N))
+        coeffs = {}
+        if self.order:  # radiance caching: the same gather in spherical harmonics
+            coeffs = dict(zip(("coeffs", "coeffs_grad"), radiance.record_coefficients(
+                self.order, Lr.reshape(K, M, N, 3), t_first.reshape(K, M, N), d.reshape(K, M, N, 3), (t, b, n))))
         grad_r = gradient_to_world(grad_r, (t, b, n))
         grad_t = gradient_to_world(grad_t, (t, b, n))
         if refine:
-            return {"id": ids, "E": E, "grad_r": grad_r, "grad_t": grad_t}
-        return {"position": p, "normal": n, "E": E, "grad_r": grad_r, "prim": np.asarray(q["prim"])[rows],
+            return {"id": ids, "E": E, "grad_r": grad_r, "grad_t": grad_t, **coeffs}
+        return {"position": p, "normal": n, "E": E, "grad_r": grad_r, "prim": np.asarray(q["prim"])[rows], **coeffs,
                 **self._clamp_radius(E, R, grad_t, np.asarray(q["footprint"])[rows])}
 
     def _clamp_radius(self, E, R, grad_t, footprint):

@@ -1,0 +1,108 @@
+"""Radiance caching (issue 10 item 8): equal-time error of icache with radiance caching against
+icache without it (final gathering on the glossy surfaces) and the path tracer.
+
+    ./dev python bench/radiance_cache.py --reference     # the converged reference (slow)
+    ./dev python bench/radiance_cache.py --times 2,4,8,16
+
+Scene: scenes/cornell_rough.blend (scenes/build_materials.py), the Cornell box with moderately
+rough glossy surfaces (GGX roughness 0.7-0.8; cornell_glossy's lobes, roughness 0.2-0.3, are
+sharper than an order-5 basis serves, harmonics.min_roughness = 0.61). 64 x 64, 64 bounces,
+seed 0. Reference: Ember's path tracer, two independent halves (seeds 101 and 102) of
+--ref-spp samples each, saved in bench/references/cornell_rough_64_ember.npz; its own relMSE
+is relMSE(A, B) / 4, subtracted from every error (bench/metrics.py). Equal time: time_limit
+per render, both cores, wall time including the photon and record stages; the 1-minute load
+average is recorded with every run (the machine is shared). Writes
+bench/results/icache/radiance.json and radiance.md.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import sys
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from bench.icache_study import Renderer, relmse  # noqa: E402
+
+SCENE, RES = "cornell_rough", 64
+REFERENCE = ROOT / "bench" / "references" / f"{SCENE}_{RES}_ember.npz"
+OUT = ROOT / "bench" / "results" / "icache"
+VARIANTS = {  # label: settings
+    "path": dict(integrator="path"),
+    "icache": dict(integrator="icache", icache_radiance=False),
+    "icache + radiance": dict(integrator="icache", icache_radiance=True),
+}
+
+
+def reference(R, spp):
+    halves = []
+    for seed in (101, 102):
+        img, facts, _ = R.render(SCENE, RES, integrator="path", samples=spp, seed=seed)
+        print(f"  reference half, seed {seed}: {spp} spp, {facts['wall_s']:.0f} s, load {facts['load']}", flush=True)
+        halves.append(img)
+    A, B = halves
+    np.savez_compressed(REFERENCE, image=0.5 * (A + B), own_relmse=relmse(A, B) / 4.0, spp=2 * spp)
+
+
+def measure(R, times, samples_cap):
+    ref = np.load(REFERENCE)
+    image, own = ref["image"], float(ref["own_relmse"])
+    rows = []
+    for t in times:
+        for label, kw in VARIANTS.items():
+            img, f, integ = R.render(SCENE, RES, samples=samples_cap, time_limit=float(t), **kw)
+            e = relmse(img, image)
+            row = {"label": label, "time_limit": t, "relmse": e, "relmse_corrected": e - own,
+                   "mean_ratio": float(img.mean() / image.mean()), **{k: f.get(k) for k in (
+                       "samples", "wall_s", "load", "records", "records_per_mpix", "interpolated_share",
+                       "stage_seconds", "nonfinite")}}
+            rows.append(row)
+            print(f"  {t:>4} s {label:18s} relMSE {row['relmse_corrected']:.2e} ({row['samples']} spp, "
+                  f"{row['wall_s']:.1f} s wall, records {row['records']}, load {row['load'][0]:.1f}-{row['load'][1]:.1f}, "
+                  f"stages {_stages(row)})", flush=True)
+    return {"reference": str(REFERENCE.relative_to(ROOT)), "reference_spp": int(ref["spp"]),
+            "reference_own_relmse": own, "rows": rows}
+
+
+def _stages(row):
+    return ", ".join(f"{k} {v:.1f}" for k, v in (row.get("stage_seconds") or {}).items())
+
+
+def markdown(res):
+    L = [f"Reference: Ember path tracer, {res['reference_spp']} spp ({res['reference']}), own relMSE "
+         f"{res['reference_own_relmse']:.1e} (subtracted). relMSE with EPS = 1e-2. Load = 1-minute load "
+         "average before-after (2 cores, shared machine).", "",
+         "| time limit (s) | integrator | spp | wall (s) | relMSE | mean / ref | records | stages (s) | load |",
+         "|---|---|---|---|---|---|---|---|---|"]
+    for r in res["rows"]:
+        L.append(f"| {r['time_limit']} | {r['label']} | {r['samples']} | {r['wall_s']:.1f} | {r['relmse_corrected']:.2e} | "
+                 f"{r['mean_ratio']:.3f} | {r['records'] if r['records'] is not None else '-'} | {_stages(r)} | "
+                 f"{r['load'][0]:.1f}-{r['load'][1]:.1f} |")
+    return "\n".join(L) + "\n"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--reference", action="store_true")
+    ap.add_argument("--ref-spp", type=int, default=2048)
+    ap.add_argument("--times", default="2,4,8,16")
+    ap.add_argument("--samples-cap", type=int, default=100000)
+    args = ap.parse_args()
+    R = Renderer()
+    if args.reference:
+        reference(R, args.ref_spp)
+        return
+    res = measure(R, [float(t) for t in args.times.split(",")], args.samples_cap)
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "radiance.json").write_text(json.dumps(res, indent=1))
+    (OUT / "radiance.md").write_text(markdown(res))
+    print(markdown(res))
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    main()
