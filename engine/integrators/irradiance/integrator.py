@@ -226,7 +226,8 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         E[i], grad_r[i], grad_t[i] = mean(r.E, new["E"]), mean(r.grad_r, new["grad_r"]), \
             mean(r.grad_t, new["grad_t"] * shrink[:, None, None])
         if "coeffs" in new:  # radiance caching: the coefficients too
-            coeffs[i], coeffs_grad[i] = mean(r.coeffs, new["coeffs"]), mean(r.coeffs_grad, new["coeffs_grad"])
+            limited = radiance.limit_gradient(new["coeffs"], new["coeffs_grad"], r.radius[i])
+            coeffs[i], coeffs_grad[i] = mean(r.coeffs, new["coeffs"]), mean(r.coeffs_grad, limited)
         self.records = replace(r, E=E, grad_r=grad_r, grad_t=grad_t, coeffs=coeffs, coeffs_grad=coeffs_grad)
         self.record_level[i] += 1
         self.octree = RecordOctree(self.records, self.scene.settings.icache_a, self.scene.settings.icache_weight)
@@ -474,8 +475,11 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         grad_t = gradient_to_world(grad_t, (t, b, n))
         if refine:
             return {"id": ids, "E": E, "grad_r": grad_r, "grad_t": grad_t, **coeffs}
-        return {"position": p, "normal": n, "E": E, "grad_r": grad_r, "prim": np.asarray(q["prim"])[rows], **coeffs,
-                **self._clamp_radius(E, R, grad_t, np.asarray(q["footprint"])[rows])}
+        out = {"position": p, "normal": n, "E": E, "grad_r": grad_r, "prim": np.asarray(q["prim"])[rows], **coeffs,
+               **self._clamp_radius(E, R, grad_t, np.asarray(q["footprint"])[rows])}
+        if self.order:
+            out["coeffs_grad"] = radiance.limit_gradient(out["coeffs"], out["coeffs_grad"], out["radius"])
+        return out
 
     def _clamp_radius(self, E, R, grad_t, footprint):
         """R_i from the harmonic mean, limited by the gradient (R <= E / |grad_t E|, per channel;

@@ -112,6 +112,19 @@ def record_coefficients(order, L, r, w, frame):
     return coeffs, grad
 
 
+def limit_gradient(coeffs, grad, radius):
+    """grad (R, B, C, 3) scaled down per record and channel so that over its radius R_i it
+    changes the coefficient vector by at most its norm: |grad_c| R_i <= |lambda_c| (Frobenius
+    norms over b and the axes). The analogue of the irradiance limit R_i <= E / |grad E|
+    (Krivanek et al. 2008), applied to the gradient because the radius is irradiance's: the
+    boundary terms weigh the jump in radiance by the basis at the horizon, where irradiance's
+    cos(theta) vanishes, so a noisy gather near a wall (small r) gives large, noisy gradients."""
+    g = np.sqrt(np.einsum("rbcx,rbcx->rc", grad, grad)) * np.asarray(radius)[:, None]
+    norm = np.sqrt(np.einsum("rbc,rbc->rc", coeffs, coeffs))
+    scale = np.divide(norm, g, out=np.ones_like(g), where=g > norm)
+    return grad * scale[:, None, :, None]
+
+
 def interpolate(octree, p, n, gradients=True):
     """Cached incident-radiance coefficients (K, B, C) at points p (K,3) with normals n: the
     weighted average of the records' coefficients (moved by their translational gradients),
@@ -134,11 +147,11 @@ def interpolate(octree, p, n, gradients=True):
     return out.reshape(K, B, C), np.bincount(rows, minlength=K)
 
 
-def bsdf_coefficients(order, sample):
-    """f_b (K, B, C) from Q BSDF samples per point: sample(q) -> (wi (K,3), weight (K,C) =
-    f cos / pdf, 0 where invalid) for q = 0..Q-1. f_b = 1/Q sum_q weight_q Y_b(wi_q)."""
+def bsdf_coefficients(order, sample, samples=BSDF_SAMPLES):
+    """f_b (K, B, C) from Q = samples BSDF samples per point: sample(q) -> (wi (K,3), weight
+    (K,C) = f cos / pdf, 0 where invalid) for q = 0..Q-1. f_b = 1/Q sum_q weight_q Y_b(wi_q)."""
     out = None
-    Q = BSDF_SAMPLES
+    Q = samples
     for q in range(Q):
         wi, weight = sample(q)
         term = np.einsum("kb,kc->kbc", harmonics.evaluate(order, wi), weight)
