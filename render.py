@@ -61,7 +61,7 @@ Irradiance cache (integrator icache; also reads the photon options):
     --icache-gather NAME photon (the global map) or path (path-traced gather rays)
     --icache-view NAME   full, or records (record positions as dots), indirect (the cache alone)
     --icache-radiance on|off   radiance caching: rough glossy surfaces from the records too
-    --icache-radiance-order N  its spherical-harmonics order (2..8; 5 serves roughness >= 0.61)
+    --icache-radiance-order N  its spherical-harmonics order (2..8; 7 serves roughness >= 0.61)
 
 Merge: `render.py merge PART.exr ... --output OUT.exr` combines EXRs that render.py wrote of
 one frame - disjoint sample ranges (--sample-offset), tiles (--border) or both - weighting each

@@ -468,7 +468,7 @@ class Settings:
     icache_gather: str = "path"
     icache_view: str = "full"  # "full", or the debug view "records" (records as dots)
     icache_radiance: bool = False  # radiance caching: rough glossy surfaces from records' incident radiance
-    icache_radiance_order: int = 5  # spherical-harmonics order n (n^2 coefficients), 2-8; sets the roughness served
+    icache_radiance_order: int = 7  # spherical-harmonics order n (n^2 coefficients), 2-8; 7 serves roughness >= 0.61
     # First sample index: a render takes samples [sample_offset, sample_offset + samples) of
     # the one sequence, so renders of disjoint ranges merge into the render of their union.
     sample_offset: int = 0

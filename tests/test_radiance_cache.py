@@ -74,7 +74,7 @@ def test_min_roughness_follows_the_phong_equivalence():
         s = harmonics.max_phong_exponent(order)
         alpha = harmonics.min_roughness(order) ** 2
         assert abs(2.0 / alpha ** 2 - 2.0 - s) < 1e-9
-    assert 0.60 < harmonics.min_roughness(5) < 0.62
+    assert 0.60 < harmonics.min_roughness(7) < 0.62
 
 
 # ----------------------------------------------------------------------------------------------
@@ -197,16 +197,15 @@ def test_interpolation_is_the_weighted_average_of_gradient_moved_coefficients():
 
 
 def test_which_materials_are_cached():
-    """Rough lobes only (order 5: GGX roughness >= 0.61, Phong n <= 12.5), no transmission, no
-    roughness texture."""
+    """Rough lobes only (order 7: GGX roughness >= 0.61, Phong n <= 12.25), no transmission."""
     from ember.engine.scene import LOBE_DIELECTRIC
     rows = [[dict(kind=LOBE_MICROFACET, roughness=0.7)], [dict(kind=LOBE_MICROFACET, roughness=0.55)],
             [dict(kind=LOBE_PHONG, exponent=12.0)], [dict(kind=LOBE_PHONG, exponent=13.0)],
             [dict(kind=LOBE_DIELECTRIC, roughness=0.9)], [dict(kind=LOBE_DIFFUSE), dict(kind=LOBE_DIFFUSE)],
             [dict(kind=LOBE_MICROFACET, roughness=0.9), dict(kind=LOBE_MICROFACET, roughness=0.3)]]
     mats = Materials.make([dict(kind=MAT_NODES, base_color=(0.5,) * 3, lobes=lobes) for lobes in rows])
-    assert radiance.cached_materials(mats, 5).tolist() == [True, False, True, False, False, True, False]
-    assert radiance.cached_materials(mats, 8)[1]                      # order 8: roughness >= 0.5
+    assert radiance.cached_materials(mats, 7).tolist() == [True, False, True, False, False, True, False]
+    assert not radiance.cached_materials(mats, 5)[0]                  # order 5: roughness >= 0.70
 
 
 # ----------------------------------------------------------------------------------------------
@@ -281,9 +280,9 @@ def test_a_closed_furnace_through_the_radiance_path_is_exact():
     session = RenderSession(scene)
     stats = session.run()
     img, integ = session.film.mean(), session.integrator
-    assert radiance.cached_materials(scene.materials, 5).all()
+    assert radiance.cached_materials(scene.materials, 7).all()
     rec = integ.records
-    assert stats.nonfinite == 0 and len(rec) > 10 and rec.coeffs.shape[1:] == (25, 3)
+    assert stats.nonfinite == 0 and len(rec) > 10 and rec.coeffs.shape[1:] == (49, 3)
     # Indirect radiance 1 in every direction: lambda_0 = sqrt(4 pi) (path-traced gathers, 2 %).
     assert abs(rec.coeffs[:, 0].mean() / np.sqrt(4 * np.pi) - 1.0) < 0.02
     blocks = img.mean(axis=-1).reshape(4, 6, 4, 6).mean(axis=(1, 3)) / 2.0 - 1.0
@@ -291,15 +290,15 @@ def test_a_closed_furnace_through_the_radiance_path_is_exact():
     assert np.abs(blocks).max() < 0.04, blocks
 
 
-def _rough_box(**kw):
+def _rough_box(roughness=0.75, exponent=6.0, **kw):
     """A box (open toward the camera) lit by a point light: a rough GGX floor (roughness 0.75),
-    a Phong back wall (n = 6), diffuse other walls, two-sided by construction."""
+    a Phong back wall (n = 6), diffuse other walls."""
     quads = box_quads((-1, -1, -1), (1, 1, 1))
     # box_quads order: bottom, top, -y, +y, -x, +x; drop -y (the camera looks in from there).
     keep = [0, 1, 3, 4, 5]
     mats = Materials.make([
-        dict(kind=MAT_NODES, base_color=(0.7,) * 3, lobes=[dict(kind=LOBE_MICROFACET, color=(0.8, 0.7, 0.5), roughness=0.75)]),
-        dict(kind=MAT_NODES, base_color=(0.6,) * 3, lobes=[dict(kind=LOBE_PHONG, color=(0.2, 0.2, 0.2), tint=(0.5, 0.5, 0.5), exponent=6.0)]),
+        dict(kind=MAT_NODES, base_color=(0.7,) * 3, lobes=[dict(kind=LOBE_MICROFACET, color=(0.8, 0.7, 0.5), roughness=roughness)]),
+        dict(kind=MAT_NODES, base_color=(0.6,) * 3, lobes=[dict(kind=LOBE_PHONG, color=(0.2, 0.2, 0.2), tint=(0.5, 0.5, 0.5), exponent=exponent)]),
         dict(kind=MAT_NODES, base_color=(0.6, 0.3, 0.3), lobes=[dict(kind=LOBE_DIFFUSE, color=(0.6, 0.3, 0.3))]),
         dict(kind=MAT_NODES, base_color=(0.3, 0.6, 0.3), lobes=[dict(kind=LOBE_DIFFUSE, color=(0.3, 0.6, 0.3))]),
     ])
@@ -310,10 +309,11 @@ def _rough_box(**kw):
 
 def test_agrees_with_the_path_tracer_on_a_rough_glossy_box():
     """Radiance caching against the path tracer on the glossy pixels (floor and back wall),
-    by 4x4 blocks of pixels: the cache is biased (interpolation, the photon map's blur), so
-    the test bounds the relative error of the glossy region's mean (within 4 %, with the path
-    tracer's standard error < 1 %) and of its blocks (RMS 6 %); radiance caching off (final
-    gathering on those surfaces) is held to the same bounds as a control."""
+    by 2x2 blocks of pixels: the cache is biased (interpolation, truncation, the photon map's
+    blur), so the test bounds the relative error of the glossy region's mean (1.5 %, with the
+    path tracer's standard error < 1 %; measured -0.3 %) and of its blocks (RMS 3 %; measured
+    1.7 %). Order 5 fails both (-2.8 %, 5.6 %: the truncation bias harmonics.py describes).
+    Radiance caching off (final gathering there) is a control: -0.9 %."""
     common = dict(width=32, height=32, seed=3, photons=200_000, caustic_photons=0)
     ref_s = RenderSession(_rough_box(integrator="path", samples=512, **common))
     ref_s.run()
@@ -326,15 +326,15 @@ def test_agrees_with_the_path_tracer_on_a_rough_glossy_box():
         assert st_.nonfinite == 0
         out[on] = (s.film.mean(), s.integrator)
     img, integ = out[True]
-    cached = radiance.cached_materials(ref_s.scene.materials, 5)
-    assert cached[:2].all() and integ.records.coeffs.shape[1] == 25 and out[False][1].records.coeffs.shape[1] == 0
+    cached = radiance.cached_materials(ref_s.scene.materials, 7)
+    assert cached[:2].all() and integ.records.coeffs.shape[1] == 49 and out[False][1].records.coeffs.shape[1] == 0
     region = (slice(10, 32), slice(4, 28))            # the floor and the back wall's lower part
     r, x = ref[region].mean(axis=-1), img[region].mean(axis=-1)
     rel = x.mean() / r.mean() - 1.0
-    assert abs(rel) < 0.04, rel
+    assert abs(rel) < 0.015, rel
     blk = lambda a: a.reshape(a.shape[0] // 2, 2, a.shape[1] // 2, 2).mean(axis=(1, 3))  # noqa: E731
     rms = float(np.sqrt(np.mean((blk(x) / blk(r) - 1.0) ** 2)))
-    assert rms < 0.06, rms
+    assert rms < 0.03, rms
     assert np.sqrt(var[region].mean(axis=-1).sum()) / r.size < 0.01 * r.mean()
     control = out[False][0][region].mean(axis=-1)
-    assert abs(control.mean() / r.mean() - 1.0) < 0.04
+    assert abs(control.mean() / r.mean() - 1.0) < 0.015

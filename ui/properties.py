@@ -211,8 +211,8 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
     icache_radiance_order: IntProperty(
         name="Harmonics Order",
         description="Spherical-harmonics order of radiance records (order^2 coefficients). It sets the "
-                    "sharpest lobe cached: GGX roughness >= 0.67 / 0.61 / 0.56 at order 4 / 5 / 6",
-        default=5, min=2, max=8,
+                    "sharpest lobe cached: GGX roughness >= 0.70 / 0.65 / 0.61 / 0.58 at order 5 / 6 / 7 / 8",
+        default=7, min=2, max=8,
     )
     # Light paths (path tracer). Limits count interactions like Max Bounces: Cycles' value + 1.
     diffuse_bounces: IntProperty(

@@ -45,7 +45,6 @@ from ...scene import LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_PHONG
 from . import harmonics
 from .hemisphere import _inverse_min_distance, _tangent, column_angles, row_angles
 
-DEFAULT_ORDER = 5      # 25 coefficients; serves GGX roughness >= 0.61 (Phong n <= 12.5)
 BSDF_SAMPLES = 16      # Q: BSDF samples per query projecting f_b (no rays)
 
 
