@@ -9,9 +9,9 @@ rough glossy surfaces (GGX roughness 0.7-0.8; cornell_glossy's lobes, roughness 
 sharper than an order-5 basis serves, harmonics.min_roughness = 0.61). 64 x 64, 64 bounces,
 seed 0. Reference: Ember's path tracer, two independent halves (seeds 101 and 102) of
 --ref-spp samples each, saved in bench/references/cornell_rough_64_ember.npz; its own relMSE
-is relMSE(A, B) / 4, subtracted from every error (bench/metrics.py). Equal time: time_limit
-per render, both cores, wall time including the photon and record stages; the 1-minute load
-average is recorded with every run (the machine is shared). Writes
+is relMSE(A, B) / 4, subtracted from every error (bench/metrics.py). Equal time: measured
+by ladders of sample counts (see `measure`), both cores, wall time including the photon and
+record stages; the 1-minute load average is recorded with every run (the machine is shared). Writes
 bench/results/icache/radiance.json and radiance.md.
 """
 from __future__ import annotations
@@ -48,24 +48,35 @@ def reference(R, spp):
     np.savez_compressed(REFERENCE, image=0.5 * (A + B), own_relmse=relmse(A, B) / 4.0, spp=2 * spp)
 
 
-def measure(R, times, samples_cap):
+LADDERS = {"path": (16, 32, 64, 128, 256, 512, 1024), "icache": (1, 2, 4, 8, 16, 32, 64)}
+
+
+def measure(R, times):
+    """Every variant at a ladder of sample counts (wall time measured, not limited: a time limit
+    stops icache between its record rounds and passes, so equal spp ladders compare more
+    cleanly); the error at time t is that of the largest run that finished within t."""
     ref = np.load(REFERENCE)
     image, own = ref["image"], float(ref["own_relmse"])
     rows = []
-    for t in times:
-        for label, kw in VARIANTS.items():
-            img, f, integ = R.render(SCENE, RES, samples=samples_cap, time_limit=float(t), **kw)
+    for label, kw in VARIANTS.items():
+        for spp in LADDERS[kw["integrator"]]:
+            img, f, integ = R.render(SCENE, RES, samples=spp, **kw)
             e = relmse(img, image)
-            row = {"label": label, "time_limit": t, "relmse": e, "relmse_corrected": e - own,
+            row = {"label": label, "relmse": e, "relmse_corrected": e - own,
                    "mean_ratio": float(img.mean() / image.mean()), **{k: f.get(k) for k in (
                        "samples", "wall_s", "load", "records", "records_per_mpix", "interpolated_share",
                        "stage_seconds", "nonfinite")}}
             rows.append(row)
-            print(f"  {t:>4} s {label:18s} relMSE {row['relmse_corrected']:.2e} ({row['samples']} spp, "
-                  f"{row['wall_s']:.1f} s wall, records {row['records']}, load {row['load'][0]:.1f}-{row['load'][1]:.1f}, "
-                  f"stages {_stages(row)})", flush=True)
+            print(f"  {label:18s} {spp:5d} spp relMSE {row['relmse_corrected']:.2e}, {row['wall_s']:.1f} s wall, "
+                  f"records {row['records']}, load {row['load'][0]:.1f}-{row['load'][1]:.1f}, stages {_stages(row)}",
+                  flush=True)
+    equal = []
+    for t in times:
+        for label in VARIANTS:
+            done = [r for r in rows if r["label"] == label and r["wall_s"] <= t]
+            equal.append({"time": t, "label": label, "run": max(done, key=lambda r: r["samples"]) if done else None})
     return {"reference": str(REFERENCE.relative_to(ROOT)), "reference_spp": int(ref["spp"]),
-            "reference_own_relmse": own, "rows": rows}
+            "reference_own_relmse": own, "rows": rows, "equal_time": equal}
 
 
 def _stages(row):
@@ -76,11 +87,22 @@ def markdown(res):
     L = [f"Reference: Ember path tracer, {res['reference_spp']} spp ({res['reference']}), own relMSE "
          f"{res['reference_own_relmse']:.1e} (subtracted). relMSE with EPS = 1e-2. Load = 1-minute load "
          "average before-after (2 cores, shared machine).", "",
-         "| time limit (s) | integrator | spp | wall (s) | relMSE | mean / ref | records | stages (s) | load |",
-         "|---|---|---|---|---|---|---|---|---|"]
+         "Equal time (the largest run of the ladder that finished within the time):", "",
+         "| time (s) | integrator | spp | wall (s) | relMSE | records | load |", "|---|---|---|---|---|---|---|"]
+    for e in res["equal_time"]:
+        r = e["run"]
+        if r is None:
+            L.append(f"| {e['time']:g} | {e['label']} | - | - | (no run within) | - | - |")
+            continue
+        L.append(f"| {e['time']:g} | {e['label']} | {r['samples']} | {r['wall_s']:.1f} | {r['relmse_corrected']:.2e} | "
+                 f"{r['records'] if r['records'] is not None else '-'} | {r['load'][0]:.1f}-{r['load'][1]:.1f} |")
+    L += ["", "All runs:", "",
+          "| integrator | spp | wall (s) | relMSE | mean / ref | records | interpolated | stages (s) | load |",
+          "|---|---|---|---|---|---|---|---|---|"]
     for r in res["rows"]:
-        L.append(f"| {r['time_limit']} | {r['label']} | {r['samples']} | {r['wall_s']:.1f} | {r['relmse_corrected']:.2e} | "
-                 f"{r['mean_ratio']:.3f} | {r['records'] if r['records'] is not None else '-'} | {_stages(r)} | "
+        share = f"{r['interpolated_share']:.1%}" if r["interpolated_share"] is not None else "-"
+        L.append(f"| {r['label']} | {r['samples']} | {r['wall_s']:.1f} | {r['relmse_corrected']:.2e} | "
+                 f"{r['mean_ratio']:.3f} | {r['records'] if r['records'] is not None else '-'} | {share} | {_stages(r)} | "
                  f"{r['load'][0]:.1f}-{r['load'][1]:.1f} |")
     return "\n".join(L) + "\n"
 
@@ -90,13 +112,12 @@ def main():
     ap.add_argument("--reference", action="store_true")
     ap.add_argument("--ref-spp", type=int, default=2048)
     ap.add_argument("--times", default="2,4,8,16")
-    ap.add_argument("--samples-cap", type=int, default=100000)
     args = ap.parse_args()
     R = Renderer()
     if args.reference:
         reference(R, args.ref_spp)
         return
-    res = measure(R, [float(t) for t in args.times.split(",")], args.samples_cap)
+    res = measure(R, [float(t) for t in args.times.split(",")])
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "radiance.json").write_text(json.dumps(res, indent=1))
     (OUT / "radiance.md").write_text(markdown(res))

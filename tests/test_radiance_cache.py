@@ -315,7 +315,7 @@ def test_agrees_with_the_path_tracer_on_a_rough_glossy_box():
     1.7 %). Order 5 fails both (-2.8 %, 5.6 %: the truncation bias harmonics.py describes).
     Radiance caching off (final gathering there) is a control: -0.9 %."""
     common = dict(width=32, height=32, seed=3, photons=200_000, caustic_photons=0)
-    ref_s = RenderSession(_rough_box(integrator="path", samples=512, **common))
+    ref_s = RenderSession(_rough_box(integrator="path", samples=256, **common))
     ref_s.run()
     ref = ref_s.film.mean()
     var = ref_s.film.variance_of_mean()
