@@ -70,13 +70,17 @@ def measure(R, times):
             print(f"  {label:18s} {spp:5d} spp relMSE {row['relmse_corrected']:.2e}, {row['wall_s']:.1f} s wall, "
                   f"records {row['records']}, load {row['load'][0]:.1f}-{row['load'][1]:.1f}, stages {_stages(row)}",
                   flush=True)
-    equal = []
+    return equal_time({"reference": str(REFERENCE.relative_to(ROOT)), "reference_spp": int(ref["spp"]),
+                       "reference_own_relmse": own, "rows": rows}, times)
+
+
+def equal_time(res, times):
+    rows, equal = res["rows"], []
     for t in times:
         for label in VARIANTS:
             done = [r for r in rows if r["label"] == label and r["wall_s"] <= t]
             equal.append({"time": t, "label": label, "run": max(done, key=lambda r: r["samples"]) if done else None})
-    return {"reference": str(REFERENCE.relative_to(ROOT)), "reference_spp": int(ref["spp"]),
-            "reference_own_relmse": own, "rows": rows, "equal_time": equal}
+    return {**res, "equal_time": equal}
 
 
 def _stages(row):
@@ -111,13 +115,15 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--reference", action="store_true")
     ap.add_argument("--ref-spp", type=int, default=2048)
-    ap.add_argument("--times", default="2,4,8,16")
+    ap.add_argument("--times", default="2,4,8,16,32")
+    ap.add_argument("--report", action="store_true", help="rewrite radiance.md from radiance.json (--times)")
     args = ap.parse_args()
-    R = Renderer()
+    R = None if args.report else Renderer()
     if args.reference:
         reference(R, args.ref_spp)
         return
-    res = measure(R, [float(t) for t in args.times.split(",")])
+    times = [float(t) for t in args.times.split(",")]
+    res = equal_time(json.loads((OUT / "radiance.json").read_text()), times) if args.report else measure(R, times)
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "radiance.json").write_text(json.dumps(res, indent=1))
     (OUT / "radiance.md").write_text(markdown(res))

@@ -338,3 +338,11 @@ def test_agrees_with_the_path_tracer_on_a_rough_glossy_box():
     assert np.sqrt(var[region].mean(axis=-1).sum()) / r.size < 0.01 * r.mean()
     control = out[False][0][region].mean(axis=-1)
     assert abs(control.mean() / r.mean() - 1.0) < 0.015
+
+
+def test_order_is_validated():
+    from ember.engine.validation import icache_problems
+    assert icache_problems(settings(icache_radiance_order=7)) == []
+    for bad in (1, 9):
+        (msg,) = icache_problems(settings(icache_radiance_order=bad))
+        assert "order must be in 2-8" in msg
