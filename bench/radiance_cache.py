@@ -6,9 +6,10 @@ icache without it (final gathering on the glossy surfaces) and the path tracer.
 
 Scene: scenes/cornell_rough.blend (scenes/build_materials.py), the Cornell box with moderately
 rough glossy surfaces (GGX roughness 0.7-0.8; cornell_glossy's lobes, roughness 0.2-0.3, are
-sharper than an order-5 basis serves, harmonics.min_roughness = 0.61). 64 x 64, 64 bounces,
-seed 0. Reference: Ember's path tracer, two independent halves (seeds 101 and 102) of
---ref-spp samples each, saved in bench/references/cornell_rough_64_ember.npz; its own relMSE
+sharper than the default order-7 basis serves, harmonics.min_roughness = 0.61). --res x --res
+(64: radiance.md, else radiance_RES.md), 64 bounces, seed 0. Reference: Ember's path tracer,
+two independent halves (seeds 101 and 102) of --ref-spp samples each, saved in
+bench/references/cornell_rough_RES_ember.npz; its own relMSE
 is relMSE(A, B) / 4, subtracted from every error (bench/metrics.py). Equal time: measured
 by ladders of sample counts (see `measure`), both cores, wall time including the photon and
 record stages; the 1-minute load average is recorded with every run (the machine is shared). Writes
@@ -28,9 +29,16 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from bench.icache_study import Renderer, relmse  # noqa: E402
 
-SCENE, RES = "cornell_rough", 64
-REFERENCE = ROOT / "bench" / "references" / f"{SCENE}_{RES}_ember.npz"
+SCENE = "cornell_rough"
 OUT = ROOT / "bench" / "results" / "icache"
+
+
+def reference_path(res):
+    return ROOT / "bench" / "references" / f"{SCENE}_{res}_ember.npz"
+
+
+def out_name(res):
+    return "radiance" if res == 64 else f"radiance_{res}"
 VARIANTS = {  # label: settings
     "path": dict(integrator="path"),
     "icache": dict(integrator="icache", icache_radiance=False),
@@ -38,29 +46,29 @@ VARIANTS = {  # label: settings
 }
 
 
-def reference(R, spp):
+def reference(R, spp, res):
     halves = []
     for seed in (101, 102):
-        img, facts, _ = R.render(SCENE, RES, integrator="path", samples=spp, seed=seed)
+        img, facts, _ = R.render(SCENE, res, integrator="path", samples=spp, seed=seed)
         print(f"  reference half, seed {seed}: {spp} spp, {facts['wall_s']:.0f} s, load {facts['load']}", flush=True)
         halves.append(img)
     A, B = halves
-    np.savez_compressed(REFERENCE, image=0.5 * (A + B), own_relmse=relmse(A, B) / 4.0, spp=2 * spp)
+    np.savez_compressed(reference_path(res), image=0.5 * (A + B), own_relmse=relmse(A, B) / 4.0, spp=2 * spp)
 
 
 LADDERS = {"path": (16, 32, 64, 128, 256, 512, 1024), "icache": (1, 2, 4, 8, 16, 32, 64)}
 
 
-def measure(R, times):
+def measure(R, times, res):
     """Every variant at a ladder of sample counts (wall time measured, not limited: a time limit
     stops icache between its record rounds and passes, so equal spp ladders compare more
     cleanly); the error at time t is that of the largest run that finished within t."""
-    ref = np.load(REFERENCE)
+    ref = np.load(reference_path(res))
     image, own = ref["image"], float(ref["own_relmse"])
     rows = []
     for label, kw in VARIANTS.items():
         for spp in LADDERS[kw["integrator"]]:
-            img, f, integ = R.render(SCENE, RES, samples=spp, **kw)
+            img, f, integ = R.render(SCENE, res, samples=spp, **kw)
             e = relmse(img, image)
             row = {"label": label, "relmse": e, "relmse_corrected": e - own,
                    "mean_ratio": float(img.mean() / image.mean()), **{k: f.get(k) for k in (
@@ -70,7 +78,7 @@ def measure(R, times):
             print(f"  {label:18s} {spp:5d} spp relMSE {row['relmse_corrected']:.2e}, {row['wall_s']:.1f} s wall, "
                   f"records {row['records']}, load {row['load'][0]:.1f}-{row['load'][1]:.1f}, stages {_stages(row)}",
                   flush=True)
-    return equal_time({"reference": str(REFERENCE.relative_to(ROOT)), "reference_spp": int(ref["spp"]),
+    return equal_time({"resolution": res, "reference": str(reference_path(res).relative_to(ROOT)), "reference_spp": int(ref["spp"]),
                        "reference_own_relmse": own, "rows": rows}, times)
 
 
@@ -88,7 +96,7 @@ def _stages(row):
 
 
 def markdown(res):
-    L = [f"Reference: Ember path tracer, {res['reference_spp']} spp ({res['reference']}), own relMSE "
+    L = [f"cornell_rough at {res.get('resolution', 64)} x {res.get('resolution', 64)}. Reference: Ember path tracer, {res['reference_spp']} spp ({res['reference']}), own relMSE "
          f"{res['reference_own_relmse']:.1e} (subtracted). relMSE with EPS = 1e-2. Load = 1-minute load "
          "average before-after (2 cores, shared machine).", "",
          "Equal time (the largest run of the ladder that finished within the time):", "",
@@ -115,18 +123,20 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--reference", action="store_true")
     ap.add_argument("--ref-spp", type=int, default=2048)
+    ap.add_argument("--res", type=int, default=64)
     ap.add_argument("--times", default="2,4,8,16,32")
     ap.add_argument("--report", action="store_true", help="rewrite radiance.md from radiance.json (--times)")
     args = ap.parse_args()
     R = None if args.report else Renderer()
     if args.reference:
-        reference(R, args.ref_spp)
+        reference(R, args.ref_spp, args.res)
         return
     times = [float(t) for t in args.times.split(",")]
-    res = equal_time(json.loads((OUT / "radiance.json").read_text()), times) if args.report else measure(R, times)
+    name = out_name(args.res)
+    res = equal_time(json.loads((OUT / f"{name}.json").read_text()), times) if args.report else measure(R, times, args.res)
     OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "radiance.json").write_text(json.dumps(res, indent=1))
-    (OUT / "radiance.md").write_text(markdown(res))
+    (OUT / f"{name}.json").write_text(json.dumps(res, indent=1))
+    (OUT / f"{name}.md").write_text(markdown(res))
     print(markdown(res))
 
 

@@ -309,12 +309,12 @@ def _rough_box(roughness=0.75, exponent=6.0, **kw):
 
 def test_agrees_with_the_path_tracer_on_a_rough_glossy_box():
     """Radiance caching against the path tracer on the glossy pixels (floor and back wall),
-    by 2x2 blocks of pixels: the cache is biased (interpolation, truncation, the photon map's
-    blur), so the test bounds the relative error of the glossy region's mean (1.5 %, with the
-    path tracer's standard error < 1 %; measured -0.3 %) and of its blocks (RMS 3 %; measured
-    1.7 %). Order 5 fails both (-2.8 %, 5.6 %: the truncation bias harmonics.py describes).
-    Radiance caching off (final gathering there) is a control: -0.9 %."""
-    common = dict(width=32, height=32, seed=3, photons=200_000, caustic_photons=0)
+    by 4x4 blocks of pixels: the cache is biased (interpolation, truncation), so the test
+    bounds the relative error of the glossy region's mean (1.2 %, with the path tracer's
+    standard error < 1 %, measured 0.2 %; measured +0.4 %) and of its blocks (RMS 2.5 %;
+    measured 1.7 %). Order 5 fails both (-1.8 %, 4.6 %: the truncation bias harmonics.py
+    describes). Radiance caching off (those surfaces path-traced) is a control: -0.1 %, 1.2 %."""
+    common = dict(width=32, height=32, seed=3, caustic_photons=0)
     ref_s = RenderSession(_rough_box(integrator="path", samples=256, **common))
     ref_s.run()
     ref = ref_s.film.mean()
@@ -328,16 +328,16 @@ def test_agrees_with_the_path_tracer_on_a_rough_glossy_box():
     img, integ = out[True]
     cached = radiance.cached_materials(ref_s.scene.materials, 7)
     assert cached[:2].all() and integ.records.coeffs.shape[1] == 49 and out[False][1].records.coeffs.shape[1] == 0
-    region = (slice(10, 32), slice(4, 28))            # the floor and the back wall's lower part
+    region = (slice(8, 32), slice(4, 28))             # the floor and the back wall's lower part
     r, x = ref[region].mean(axis=-1), img[region].mean(axis=-1)
     rel = x.mean() / r.mean() - 1.0
-    assert abs(rel) < 0.015, rel
-    blk = lambda a: a.reshape(a.shape[0] // 2, 2, a.shape[1] // 2, 2).mean(axis=(1, 3))  # noqa: E731
+    assert abs(rel) < 0.012, rel
+    blk = lambda a: a.reshape(a.shape[0] // 4, 4, a.shape[1] // 4, 4).mean(axis=(1, 3))  # noqa: E731
     rms = float(np.sqrt(np.mean((blk(x) / blk(r) - 1.0) ** 2)))
-    assert rms < 0.03, rms
+    assert rms < 0.025, rms
     assert np.sqrt(var[region].mean(axis=-1).sum()) / r.size < 0.01 * r.mean()
     control = out[False][0][region].mean(axis=-1)
-    assert abs(control.mean() / r.mean() - 1.0) < 0.015
+    assert abs(control.mean() / r.mean() - 1.0) < 0.012
 
 
 def test_order_is_validated():

@@ -206,7 +206,7 @@ class EmberSceneSettings(bpy.types.PropertyGroup):
         description="Rough glossy surfaces also take their indirect light from the records, which then "
                     "hold the incident radiance in spherical harmonics (Krivanek et al. 2005); sharper "
                     "lobes keep final gathering",
-        default=True,
+        default=False,
     )
     icache_radiance_order: IntProperty(
         name="Harmonics Order",
