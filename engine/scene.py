@@ -467,7 +467,7 @@ class Settings:
     # "photon" (the global photon map: the seed's combination)
     icache_gather: str = "path"
     icache_view: str = "full"  # "full", or the debug view "records" (records as dots)
-    icache_radiance: bool = False  # radiance caching: rough glossy surfaces from records' incident radiance (off: bench/results/icache/radiance*.md)
+    icache_radiance: bool = False  # radiance caching of rough glossy surfaces (off: bench/results/icache/radiance.md)
     icache_radiance_order: int = 7  # spherical-harmonics order n (n^2 coefficients), 2-8; 7 serves roughness >= 0.61
     # First sample index: a render takes samples [sample_offset, sample_offset + samples) of
     # the one sequence, so renders of disjoint ranges merge into the render of their union.
