@@ -359,7 +359,7 @@ def test_pack_round_trip_on_read_only_views():
         shared[k] = buf
     back = C.Records.from_packed(shared)
     for k in packed:
-        assert np.shares_memory(getattr(back, k), shared[k])
+        assert shared[k].size == 0 or np.shares_memory(getattr(back, k), shared[k])  # (no coefficients: empty)
         assert np.array_equal(getattr(back, k), getattr(rec, k))
     p, n = _plane_points(500, rng)
     for got, want in zip(C.RecordOctree(back, 0.2).interpolate(p, n),
