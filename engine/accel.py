@@ -64,13 +64,18 @@ class Accel:
 
     def __init__(self, mesh: Mesh):
         tri = mesh.vertices.astype(np.float64)[mesh.triangles]  # (T,3,3)
-        self.v0 = tri[:, 0]
-        self.e1 = tri[:, 1] - tri[:, 0]
-        self.e2 = tri[:, 2] - tri[:, 0]
+        # v0, e1, e2 and ng side by side in one (T,12) row: a hit reads one 96-byte row, not
+        # four scattered ones (on a million triangles the gathers are cache and TLB misses).
+        self.rows = np.empty((len(tri), 12))
+        self.v0, self.e1, self.e2, self.ng = (self.rows[:, k:k + 3] for k in (0, 3, 6, 9))
+        self.v0[:] = tri[:, 0]
+        np.subtract(tri[:, 1], tri[:, 0], out=self.e1)
+        np.subtract(tri[:, 2], tri[:, 0], out=self.e2)
         cross = np.cross(self.e1, self.e2)
         norm = np.linalg.norm(cross, axis=1)
         self.area = 0.5 * norm
-        self.ng = np.divide(cross, norm[:, None], out=np.zeros_like(cross), where=norm[:, None] > 0)
+        np.divide(cross, norm[:, None], out=self.ng, where=norm[:, None] > 0)
+        self.ng[norm == 0] = 0.0
         self.n_triangles = len(tri)
         self.scene_radius = _bounding_radius(mesh.vertices)
         self._lock = threading.Lock()
@@ -141,10 +146,11 @@ class Accel:
         miss = prim < 0
         t[miss] = np.inf
         safe = np.where(miss, 0, prim)
-        p = take(self.v0, safe) + scale(take(self.e1, safe), b1) + scale(take(self.e2, safe), b2)
+        rows = take(self.rows, safe)
+        p = rows[:, 0:3] + scale(rows[:, 3:6], b1) + scale(rows[:, 6:9], b2)
         b = np.empty((n, 3))
         b[:, 0], b[:, 1], b[:, 2] = 1.0 - b1 - b2, b1, b2
-        return Hit(prim=prim, t=t, p=p, b=b, ng=take(self.ng, safe))
+        return Hit(prim=prim, t=t, p=p, b=b, ng=np.ascontiguousarray(rows[:, 9:12]))
 
     def _retrace_self_hits(self, o32, d32, tfar, skip_prim, prim, t, b1, b2):
         """Rays that re-hit the triangle they leave are traced again from just through its

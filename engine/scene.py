@@ -10,6 +10,7 @@ Everything is a frozen dataclass of arrays so a Scene is picklable and can be sa
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -597,10 +598,25 @@ def digest(value) -> str:
     return h.hexdigest()
 
 
+_DIGESTS: dict = {}  # id(part) -> (weak reference to the part, its digest)
+
+
+def part_digest(part) -> str:
+    """digest(to_plain(part)), remembered for as long as the part lives: parts are frozen, and
+    a viewport hashes the same 100 MB mesh at every update otherwise."""
+    key = id(part)
+    known = _DIGESTS.get(key)
+    if known is not None and known[0]() is part:
+        return known[1]
+    value = digest(to_plain(part))
+    _DIGESTS[key] = (weakref.ref(part, lambda _, key=key: _DIGESTS.pop(key, None)), value)
+    return value
+
+
 def part_digests(scene: "Scene") -> dict[str, str]:
     """Part name (mesh, materials, lights, world, camera, settings) -> digest: what changed
     between two renders (persistent data rebuilds only that)."""
-    return {f.name: digest(to_plain(getattr(scene, f.name))) for f in fields(scene)}
+    return {f.name: part_digest(getattr(scene, f.name)) for f in fields(scene)}
 
 
 def scene_digest(scene: "Scene") -> str:

@@ -94,9 +94,14 @@ class RenderStats:
 
 
 class RenderSession:
-    def __init__(self, scene: Scene, clock=time.perf_counter):
-        """clock: seconds (tests give a fake one); the time limit counts from here."""
+    def __init__(self, scene: Scene, clock=time.perf_counter, pool=None, stage_cache=None):
+        """clock: seconds (tests give a fake one); the time limit counts from here. pool: a
+        workers.WorkerPool its owner keeps across renders (the viewport's): items run there
+        whatever their number, and a stop cancels them without ending the workers.
+        stage_cache: a StageCache (engine/stage_cache.py) whose stored stage results this
+        render reuses where the scene parts they depend on are unchanged."""
         self.clock = clock
+        self.pool, self.stage_cache = pool, stage_cache
         self.t_start = clock()
         validate(scene)
         scene = recentred(scene)  # far from the world origin: render about the scene's centre
@@ -125,6 +130,8 @@ class RenderSession:
         # Worker processes pay ~1 s to start; worth it only for renders of several items.
         self.processes = (cores if cores > 1 and self.integrator.work_items() >= 2 * cores and workers.can_spawn()
                           else 0)
+        if pool is not None:
+            self.processes = pool.n
         # Embree, light tables and the integrator's tracing side live where the tracing
         # happens: here, or in each worker only (not here too: an 8k environment table is
         # hundreds of MB).
@@ -143,7 +150,7 @@ class RenderSession:
     def _backend(self, stop: threading.Event):
         """Where items run: worker processes, or a thread of this process."""
         if self.processes:
-            return _Processes(self.scene, self.processes)
+            return _Processes(self.scene, self.processes, self.pool)
         return _InProcess(self.tracer, stop)
 
     def run(self, on_update=None, should_stop=None) -> RenderStats:
@@ -166,7 +173,12 @@ class RenderSession:
                     break
                 for stage in stages:
                     t_stage = time.perf_counter()
-                    results = run.stage(stage, backend)
+                    cache = self.stage_cache
+                    results = cache.get(self, round_, stage) if cache is not None else None
+                    if results is None:
+                        results = run.stage(stage, backend)
+                        if cache is not None and results is not None:
+                            cache.put(self, round_, stage, results)
                     run.stage_seconds[stage.name] = run.stage_seconds.get(stage.name, 0.0) + time.perf_counter() - t_stage
                     if results is None:  # stopped: cancel, time limit or noise target
                         break
@@ -230,8 +242,11 @@ class _InProcess:
 class _Processes:
     """Items run in worker processes; published arrays go through shared memory."""
 
-    def __init__(self, scene: Scene, n: int):
-        if scene.settings.persistent:
+    def __init__(self, scene: Scene, n: int, owned=None):
+        self.owned = owned  # a pool its owner keeps (never closed here)
+        if owned is not None:
+            self.pool = owned
+        elif scene.settings.persistent:
             tracer_mod.forget()  # the workers trace: no tracer kept here
             self.pool = workers.pool_for(n)
         else:
@@ -239,7 +254,8 @@ class _Processes:
         try:
             self.builds = self.pool.load(scene)
         except BaseException:
-            self.pool.close(kill=True)
+            if owned is None:
+                self.pool.close(kill=True)
             raise
         self.processes = n
         self.in_flight = 2 * n
@@ -254,7 +270,10 @@ class _Processes:
         self.pool.install(version, publisher.publish(arrays))
 
     def close(self, kill: bool, keep: bool = False) -> None:
-        if keep and not kill and self.pool.alive():
+        if self.owned is not None:  # stop what is in flight; the owner keeps the workers
+            if not self.pool.cancel():
+                self.pool.close(kill=True)
+        elif keep and not kill and self.pool.alive():
             workers.keep(self.pool)
         else:
             self.pool.close(kill=kill)

@@ -8,14 +8,17 @@
 The thread renders the newest scene it was given: first one sample at 1/`pixel_size` of the
 resolution (so an edit shows within a fraction of a second), then full resolution, one pass
 after another up to the scene's sample count. An update stops the running render at its next
-check (RenderSession polls `should_stop` at least every UPDATE_INTERVAL; the path tracer checks
-its stop event every bounce) and starts over. Renders ask for persistent data
-(Settings.persistent): the Embree scene and light tables are rebuilt only when the scene parts
-they depend on changed (engine/tracer.py compares part digests).
+check and starts over.
 
-Tracing happens in this process, on one core: a restart cancels the render, and worker
-processes are not kept across a cancel (engine/session.py), so each restart would pay their
-start-up (~1 s). Nothing here touches Blender.
+Tracing happens in worker processes (engine/parallel/workers.py) that this session starts once
+and keeps until `close`: every render loads its scene into them, sending only the parts that
+changed, and each worker rebuilds only what those parts invalidate (Embree for new geometry,
+light tables for new lights, materials or world: engine/tracer.py). An update cancels the
+items in flight through the pool's cancel counter - a running item stops at its next bounce -
+so the workers are free for the new scene at once. Stages whose results do not depend on the
+view (photon maps) are kept across camera moves (engine/stage_cache.py). Where workers cannot
+start (one core, Blender's own binary) the session traces in this process. Nothing here
+touches Blender.
 """
 from __future__ import annotations
 
@@ -24,8 +27,10 @@ import time
 
 import numpy as np
 
+from .parallel import workers
 from .scene import Scene
 from .session import RenderSession
+from .stage_cache import StageCache
 
 HALF_MAX = 65504.0  # the draw texture is half float: larger values would become inf
 
@@ -66,6 +71,8 @@ class ViewportSession:
         self._version = 0
         self.stats = []  # per update: dict(builds, first_image, samples) (bench/viewport.py, tests)
         self.error = None  # the last render's exception message, if it failed
+        self.pool = None  # the worker processes, kept across updates (render thread)
+        self.stage_cache = StageCache()
         self._thread = threading.Thread(target=self._loop, name="ember-viewport", daemon=True)
         self._thread.start()
 
@@ -76,6 +83,7 @@ class ViewportSession:
             self._job = scene
             self._restart.set()
             self._cond.notify()
+        self._interrupt()
 
     def latest(self):
         """(version, flat float32 RGBA rows bottom-up, width, height, samples) of the newest
@@ -92,7 +100,20 @@ class ViewportSession:
             self._closed = True
             self._restart.set()
             self._cond.notify()
+        self._interrupt()
         self._thread.join(timeout)
+        if self.pool is not None:
+            self.pool.close(kill=True)
+            self.pool = None
+
+    def _interrupt(self) -> None:
+        """Stop the workers' items in flight at their next bounce; the render thread's session
+        sees the restart and cancels whatever it sends after this."""
+        with self._cond:
+            pool = self.pool
+        epoch = pool.epoch if pool is not None else None
+        if epoch is not None:
+            epoch[0] += 1
 
     # --- render thread ----------------------------------------------------------------------
     _running = False
@@ -121,15 +142,22 @@ class ViewportSession:
     def _render(self, scene: Scene) -> None:
         t0 = time.perf_counter()
         record = dict(builds={}, first_image=None, samples=[])
+        started = workers.STARTED[0]
         self.stats.append(record)
         self.error = None
         s = scene.settings
         for factor in (self.pixel_size, 1):
             if self._stop():
                 return
+            pool = self._pool(s.threads)
             level = coarse_scene(scene, factor) if factor > 1 else scene
-            level = level.replace(settings=level.settings.replace(persistent=True, threads=1))
-            session = RenderSession(level)
+            ls = level.settings
+            # Without workers this process traces alone (threads=1: no pool of its own either).
+            ls = ls.replace(persistent=True, threads=s.threads if pool else 1)
+            if factor > 1 and pool is not None:  # the one-sample image: a share for every worker
+                ls = ls.replace(batch_size=min(ls.batch_size, -(-ls.width * ls.height // pool.n)))
+            level = level.replace(settings=ls)
+            session = RenderSession(level, pool=pool, stage_cache=self.stage_cache)
 
             def publish(progress, factor=factor):
                 if not progress.pass_completed:
@@ -150,3 +178,21 @@ class ViewportSession:
             stats = session.run(on_update=publish, should_stop=self._stop)
             for key, n in stats.builds.items():
                 record["builds"][key] = record["builds"].get(key, 0) + n
+            record["processes"] = stats.processes
+            record["builds"]["workers"] = workers.STARTED[0] - started
+
+    def _pool(self, threads: int):
+        """The session's worker pool (started on first use, again if a worker died or the
+        thread count changed), or None where workers cannot run."""
+        n = threads or workers.available_cores()
+        if n < 2 or not workers.can_spawn():
+            n = 0
+        pool = self.pool
+        if pool is not None and (pool.n != n or not pool.alive()):
+            pool.close(kill=True)
+            pool = None
+        if pool is None and n:
+            pool = workers.WorkerPool(n)
+        with self._cond:
+            self.pool = pool
+        return pool

@@ -183,7 +183,7 @@ class ViewportDriver:
         t0 = time.perf_counter()
         size = (context.region.width, context.region.height)
         overrides = dict(width=size[0], height=size[1], border=(0, 0) + size, batch_size=VIEWPORT_BATCH,
-                         samples=int(depsgraph.scene.ember.preview_samples), passes=(), threads=1)
+                         samples=int(depsgraph.scene.ember.preview_samples), passes=())
         try:
             if self.export is None or size != self.size:
                 self.export = LiveExport(depsgraph, overrides)

@@ -70,6 +70,9 @@ class Integrator:
     # Whether its film-only stages may run over a subset of the pixels (adaptive sampling):
     # its `run` places paths with BatchLayout.locate.
     adaptive: ClassVar[bool] = False
+    # Stages whose items depend only on the scene without its camera and view settings (photon
+    # maps): a viewport keeps their results across camera moves (engine/stage_cache.py).
+    view_independent: ClassVar[tuple] = ()
 
     def __init__(self, scene: Scene):
         from ..tracer import BatchLayout

@@ -8,13 +8,19 @@ Scene as plain arrays (no class references, so it works whatever name Blender im
 under), builds its own Embree scene and integrator (engine/tracer.py) and then answers
 requests over its pipes.
 
-Messages are length-prefixed pickles. Parent -> worker: ("scene", parts) at the start of
-every render (part name -> plain arrays, or None for a part unchanged since the last scene:
-persistent data), ("run", stage as a dict, item), ("install", version, shared-memory
-handle), `None` to quit. Worker -> parent, one answer per scene or run, in order: ("done",
-result...) or ("error", text); a scene's result is what it built ({"embree": 0 or 1, ...}).
-Installs are not answered: the pipe is ordered, so every run sent after an install sees the
-installed arrays.
+Messages are length-prefixed pickles. Parent -> worker: ("cancel", segment name) once, the
+pool's cancel counter (below); ("scene", parts) at the start of every render (part name ->
+plain arrays, or None for a part unchanged since the last scene: persistent data), ("run",
+stage as a dict, item, epoch), ("install", version, shared-memory handle), `None` to quit.
+Worker -> parent, one answer per scene or run, in order: ("done", result...), ("cancelled",)
+or ("error", text); a scene's result is what it built ({"embree": 0 or 1, ...}). Installs
+and the counter are not answered: the pipe is ordered, so every run sent after an install
+sees the installed arrays.
+
+Cancel without killing (`WorkerPool.cancel`): the parent bumps a counter in a one-word
+shared-memory segment; a run whose epoch (the counter when it was sent) is older stops at
+its integrator's next stop check (a bounce) or is answered at once if not started, so the
+workers are free again within a fraction of a second and keep everything they built.
 
 Persistent data: a pool whose render asked for it (Settings.persistent) is kept after the
 render (`keep`) and taken by the next one (`pool_for`) with the same number of workers; its
@@ -36,9 +42,12 @@ import struct
 import subprocess
 import sys
 import threading
-from concurrent.futures import Future
+from concurrent.futures import Future, wait
+from multiprocessing import shared_memory
 
-from ..errors import EmberError
+import numpy as np
+
+from ..errors import Cancelled, EmberError
 
 _HEADER = struct.Struct("<Q")
 ROOT = pathlib.Path(__file__).resolve().parents[2]
@@ -69,7 +78,10 @@ def serve(fin, fout) -> None:
     from .shared import Attachment
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from ..errors import Cancelled
+
     tracer, plain = None, {}
+    epoch = None  # the pool's cancel counter (a one-element view of shared memory)
     current = {}  # array name -> the Attachment holding its latest version
     deferred = None  # an install's failure, reported as the next request's answer
     try:
@@ -87,6 +99,10 @@ def serve(fin, fout) -> None:
                     before = dict(BUILDS)
                     tracer = Tracer(scene_from_plain(plain), tracer, changed)
                     write_message(fout, ("done", {k: BUILDS[k] - before[k] for k in BUILDS}))
+                    continue
+                if msg[0] == "cancel":
+                    counter = Attachment((msg[1], {"epoch": (0, (1,), "<i8")}))
+                    epoch = counter.arrays["epoch"]
                     continue
                 if msg[0] == "install":
                     _, version, handle = msg
@@ -106,8 +122,17 @@ def serve(fin, fout) -> None:
                     write_message(fout, ("error", deferred))
                     deferred = None
                     continue
-                _, stage, item = msg
-                write_message(fout, ("done",) + tracer.run(Stage(**stage), item))
+                _, stage, item, sent = msg
+                stop = None if epoch is None else _Stale(epoch, sent)
+                if stop is not None and stop.is_set():
+                    write_message(fout, ("cancelled",))
+                    continue
+                try:
+                    result = tracer.run(Stage(**stage), item, stop)
+                except Cancelled:
+                    write_message(fout, ("cancelled",))
+                    continue
+                write_message(fout, ("done",) + result)
             except Exception:  # reported to the parent, which raises it on its side
                 import traceback
 
@@ -120,6 +145,17 @@ def serve(fin, fout) -> None:
     finally:
         for attachment in set(current.values()):
             attachment.close()
+
+
+class _Stale:
+    """A work item's stop event: set once the pool's cancel counter has moved past the epoch
+    the item was sent in (what integrators poll every bounce)."""
+
+    def __init__(self, counter, sent: int):
+        self.counter, self.sent = counter, sent
+
+    def is_set(self) -> bool:
+        return int(self.counter[0]) != self.sent
 
 
 def available_cores() -> int:
@@ -169,6 +205,8 @@ class _Worker:
                 return
             if msg[0] == "done":
                 fut.set_result(msg[1:])
+            elif msg[0] == "cancelled":
+                fut.set_exception(Cancelled())
             else:
                 fut.set_exception(RuntimeError("Ember worker failed:\n" + msg[1]))
 
@@ -190,12 +228,13 @@ class _Worker:
             write_message(self.proc.stdin, msg)
         return fut
 
-    def submit(self, stage: dict, item: int) -> Future:
-        return self.request(("run", stage, item))
+    def submit(self, stage: dict, item: int, epoch: int) -> Future:
+        return self.request(("run", stage, item, epoch))
 
-    def install(self, version: int, handle) -> None:
+    def send(self, msg) -> None:
+        """A message that gets no answer (install, the cancel counter)."""
         with self.lock:
-            write_message(self.proc.stdin, ("install", version, handle))
+            write_message(self.proc.stdin, msg)
 
     def load(self) -> int:
         with self.lock:
@@ -219,7 +258,12 @@ class WorkerPool:
 
     def __init__(self, n: int):
         self.n = n
+        self.counter = shared_memory.SharedMemory(create=True, size=8)  # the cancel epoch
+        self.epoch = np.ndarray((1,), np.int64, buffer=self.counter.buf)
+        self.epoch[0] = 0
         self.workers = [_Worker() for _ in range(n)]
+        for w in self.workers:
+            w.send(("cancel", self.counter.name))
         self.digests = {}  # part name -> digest of the scene part the workers hold
 
     def load(self, scene) -> dict:
@@ -241,16 +285,34 @@ class WorkerPool:
 
     def submit(self, stage, item: int) -> Future:
         plain = dataclasses.asdict(stage)  # no class references across the pipe
-        return min(self.workers, key=_Worker.load).submit(plain, item)
+        return min(self.workers, key=_Worker.load).submit(plain, item, int(self.epoch[0]))
 
     def install(self, version: int, handle) -> None:
         """Every worker installs the published arrays before its next item."""
         for w in self.workers:
-            w.install(version, handle)
+            w.send(("install", version, handle))
+
+    def cancel(self, timeout: float = 10.0) -> bool:
+        """Stop every item sent so far (running ones at their next stop check) and wait until
+        all are answered; the workers stay up with what they built. False if they did not
+        answer in time (the caller then closes the pool)."""
+        self.epoch[0] += 1
+        pending = []
+        for w in self.workers:
+            with w.lock:
+                pending += w.pending
+        not_done = wait(pending, timeout=timeout).not_done
+        return not not_done and self.alive()
 
     def close(self, kill: bool = False) -> None:
         for w in self.workers:
             w.close(kill)
+        self.epoch = None
+        try:
+            self.counter.unlink()
+            self.counter.close()
+        except (FileNotFoundError, BufferError):  # pragma: no cover - already gone / a view alive
+            pass
 
 
 _kept: list = []  # the pool a persistent render left for the next one (at most one)

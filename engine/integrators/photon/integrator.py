@@ -63,6 +63,7 @@ class PhotonIntegrator(Integrator):
                    "(biased, consistent as photons grow)")
     own_passes = ("Caustics",)
     adaptive = True  # its camera pass: the maps are built once, before it
+    view_independent = ("photons", "radiance")  # ppm's photons carry their pass; icache's records see the camera
 
     def __init__(self, scene):
         super().__init__(scene)
