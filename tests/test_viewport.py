@@ -3,11 +3,16 @@ drawing, and a session that renders progressively, restarts on change and stops 
 import time
 
 import numpy as np
+import pytest
 
 from ember.engine import viewport
+from ember.engine.integrators import NAMES
+from ember.engine.parallel import workers
 from ember.engine.session import RenderSession
 
-from core_scenes import furnace_box, sphere_with_point_light
+from core_scenes import furnace_box, perspective, sphere_with_point_light
+
+needs_workers = pytest.mark.skipif(not workers.can_spawn(), reason="no worker processes can be started here")
 
 
 def test_draw_buffer_is_bottom_up_float32_and_below_half_overflow():
@@ -81,20 +86,86 @@ def test_session_renders_restarts_on_change_and_stops_cleanly():
     assert not view._thread.is_alive()
 
 
-def test_session_works_with_every_integrator():
-    """Each registered integrator renders in the viewport (the photon integrators re-run their
-    photon stages on every restart) and its final buffer is RenderSession's image."""
-    from ember.engine.integrators import NAMES
-    for name in NAMES:
-        scene = sphere_with_point_light(width=12, height=8, samples=2)
-        scene = scene.replace(settings=scene.settings.replace(integrator=name, photons=2000, caustic_photons=0,
-                                                              gather_rays=2))
-        view = viewport.ViewportSession(pixel_size=2)
-        try:
-            view.update(scene)
-            _, buf, *_ = _wait(view, 2)
-        finally:
-            view.close()
-        reference = RenderSession(scene)
-        reference.run()
-        np.testing.assert_array_equal(buf, viewport.draw_buffer(reference.film.image()), err_msg=name)
+@pytest.mark.parametrize("name", NAMES)
+def test_session_works_with_every_integrator(name):
+    """Each registered integrator renders in the viewport and its final buffer is
+    RenderSession's image."""
+    scene = sphere_with_point_light(width=12, height=8, samples=2)
+    scene = scene.replace(settings=scene.settings.replace(integrator=name, photons=2000, caustic_photons=0,
+                                                          gather_rays=2))
+    view = viewport.ViewportSession(pixel_size=2)
+    try:
+        view.update(scene)
+        _, buf, *_ = _wait(view, 2)
+    finally:
+        view.close()
+    reference = RenderSession(scene)
+    reference.run()
+    np.testing.assert_array_equal(buf, viewport.draw_buffer(reference.film.image()), err_msg=name)
+
+
+def _pids(view):
+    return [w.proc.pid for w in view.pool.workers]
+
+
+@needs_workers
+def test_session_traces_on_workers_kept_across_updates_and_restarts():
+    """Two worker processes trace every update: started once, and the same processes
+    serve a light change and a restart in the middle of a long render (cancelled, not
+    killed); the new scene's Embree scene is not rebuilt for a light change. The image is
+    the one RenderSession makes in this process."""
+    scene = sphere_with_point_light(width=24, height=16, samples=3, threads=2)
+    view = viewport.ViewportSession(pixel_size=2)
+    started = workers.STARTED[0]
+    try:
+        view.update(scene.replace(settings=scene.settings.replace(samples=100000)))
+        while view.latest() is None or view.latest()[4] < 2:
+            assert view.error is None, view.error
+            time.sleep(0.02)
+        assert view.stats[-1]["processes"] == 2
+        pids = _pids(view)
+        brighter = scene.replace(lights=scene.lights.__class__(**{**scene.lights.__dict__, "Le": scene.lights.Le * 2}))
+        view.update(brighter)  # a restart while items are in flight
+        version, buf, *_ = _wait(view, 3)
+        assert view.stats[-1]["processes"] == 2 and view.stats[-1]["builds"]["embree"] == 0
+        assert _pids(view) == pids and view.pool.alive()
+        assert workers.STARTED[0] - started == 2
+        assert [record["builds"]["workers"] for record in view.stats] == [2, 0]
+    finally:
+        view.close()
+    assert view.pool is None and not view._thread.is_alive()
+    reference = RenderSession(brighter.replace(settings=brighter.settings.replace(threads=1)))
+    reference.run()
+    np.testing.assert_array_equal(buf, viewport.draw_buffer(reference.film.image()))
+
+
+@pytest.mark.parametrize("name", ["photon", "icache"])
+def test_photon_maps_survive_a_camera_move(name):
+    """The photon stages run once for a scene and are reused (not run) when only the camera
+    moves - also by the full-resolution level after the coarse one; a light change runs them
+    again. The moved view's image equals a fresh RenderSession's (stored results are exact).
+    icache's records depend on the view and run again (not counted here)."""
+    scene = sphere_with_point_light(width=12, height=8, samples=2, threads=2)
+    scene = scene.replace(settings=scene.settings.replace(integrator=name, photons=3000, caustic_photons=0,
+                                                          gather_rays=2, icache_rays=50))
+    view = viewport.ViewportSession(pixel_size=2)
+    cache = view.stage_cache
+    try:
+        view.update(scene)
+        _wait(view, 2)
+        assert cache.runs["photons"] == 1 and cache.reused["photons"] == 1  # coarse ran, full reused
+        moved = scene.replace(camera=perspective((0.1, 0.3, 0.05), (0, 1, 0), 50, aspect=1.5))
+        view.update(moved)
+        _, buf, *_ = _wait(view, 2)
+        assert cache.runs["photons"] == 1 and cache.reused["photons"] == 3
+        if name == "photon":
+            assert cache.runs["radiance"] == 1 and cache.reused["radiance"] == 3
+        view.update(scene.replace(lights=scene.lights.__class__(**{**scene.lights.__dict__,
+                                                                    "Le": scene.lights.Le * 2})))
+        _wait(view, 2)
+        assert cache.runs["photons"] == 2
+    finally:
+        view.close()
+    reference = RenderSession(moved)
+    reference.run()
+    np.testing.assert_array_equal(buf, viewport.draw_buffer(reference.film.image()))

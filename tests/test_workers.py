@@ -36,3 +36,29 @@ def test_a_version_superseded_before_a_worker_attaches_it_costs_no_answer():
     finally:
         pool.close(kill=True)
         publisher.release()
+
+
+def test_cancel_stops_items_in_flight_and_keeps_the_workers():
+    """WorkerPool.cancel: items already running stop at their next bounce and items still
+    queued are answered without running (both as Cancelled); the same worker processes then
+    run the next item, with the scene they had (no new load)."""
+    if not workers.can_spawn():
+        pytest.skip("no worker processes can be started here")
+    from ember.engine.errors import Cancelled
+
+    scene = furnace_box(width=64, height=64, samples=1, batch_size=1 << 20)
+    pool = workers.WorkerPool(2)
+    try:
+        pool.load(scene)
+        pids = [w.proc.pid for w in pool.workers]
+        big = Stage("pixels", 1, film=True, start=0, stop=1 << 20)  # ~seconds per item
+        futures = [pool.submit(big, 0) for _ in range(6)]
+        time.sleep(0.5)
+        assert pool.cancel(timeout=60)
+        outcomes = [type(f.exception()) for f in futures]
+        assert outcomes == [Cancelled] * 6
+        assert pool.alive() and [w.proc.pid for w in pool.workers] == pids
+        small = Stage("pixels", 1, film=True, start=0, stop=64)
+        assert pool.submit(small, 0).result(timeout=60)[0].shape == (64, 3)
+    finally:
+        pool.close(kill=True)
