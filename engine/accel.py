@@ -62,28 +62,64 @@ class Accel:
     Counts rays traced and time spent inside Embree.
     """
 
-    def __init__(self, mesh: Mesh):
-        tri = mesh.vertices.astype(np.float64)[mesh.triangles]  # (T,3,3)
+    def __init__(self, mesh: Mesh, previous: "Accel | None" = None, split: bool = False):
+        """split: big objects get Embree scenes of their own (`blocks`; persistent data: the
+        viewport, animations); previous: the Accel of an earlier version of the scene, whose
+        Embree scenes and per-triangle rows are reused for blocks that are byte for byte the
+        same."""
+        self.mesh = mesh
         # v0, e1, e2 and ng side by side in one (T,12) row: a hit reads one 96-byte row, not
         # four scattered ones (on a million triangles the gathers are cache and TLB misses).
-        self.rows = np.empty((len(tri), 12))
+        self.rows = np.empty((mesh.n_triangles, 12))
+        self.area = np.empty(mesh.n_triangles)
         self.v0, self.e1, self.e2, self.ng = (self.rows[:, k:k + 3] for k in (0, 3, 6, 9))
-        self.v0[:] = tri[:, 0]
-        np.subtract(tri[:, 1], tri[:, 0], out=self.e1)
-        np.subtract(tri[:, 2], tri[:, 0], out=self.e2)
-        cross = np.cross(self.e1, self.e2)
-        norm = np.linalg.norm(cross, axis=1)
-        self.area = 0.5 * norm
-        np.divide(cross, norm[:, None], out=self.ng, where=norm[:, None] > 0)
-        self.ng[norm == 0] = 0.0
-        self.n_triangles = len(tri)
+        self.n_triangles = mesh.n_triangles
         self.scene_radius = _bounding_radius(mesh.vertices)
         self._lock = threading.Lock()
         self.rays = 0
         self.embree_seconds = 0.0
         self._global_prim = None  # subset views: Embree's primID -> triangle index
         self._stats = self  # where rays and Embree time are counted (subset views: the full Accel)
-        self._embree = self._build(mesh.vertices, mesh.triangles) if self.n_triangles else None
+        # One Embree scene per block (engine/accel.py's BLOCK_MIN): [(scene, first triangle,
+        # first vertex, triangles, vertices)]; queries take the closest hit over all of them.
+        self._blocks = []
+        for a, b in (blocks(mesh) if split else [(0, mesh.n_triangles)] if mesh.n_triangles else []):
+            tris = mesh.triangles[a:b]
+            va, vb = int(tris.min()), int(tris.max()) + 1
+            old = previous._same_block(mesh, a, b, va, vb) if previous is not None else None
+            if old is not None:
+                embree, pa = old
+                self.rows[a:b], self.area[a:b] = previous.rows[pa:pa + b - a], previous.area[pa:pa + b - a]
+            else:
+                embree = self._build(mesh.vertices[va:vb], tris - va)
+                BUILT[0] += 1
+                self._fill_rows(a, b)
+            self._blocks.append((embree, a, va, b - a, vb - va))
+        self._embree = self._blocks[0][0] if self._blocks else None
+
+    def _fill_rows(self, a: int, b: int) -> None:
+        tri = self.mesh.vertices.astype(np.float64)[self.mesh.triangles[a:b]]  # (T,3,3)
+        self.v0[a:b] = tri[:, 0]
+        np.subtract(tri[:, 1], tri[:, 0], out=self.e1[a:b])
+        np.subtract(tri[:, 2], tri[:, 0], out=self.e2[a:b])
+        cross = np.cross(self.e1[a:b], self.e2[a:b])
+        norm = np.linalg.norm(cross, axis=1)
+        self.area[a:b] = 0.5 * norm
+        ng = self.ng[a:b]
+        np.divide(cross, norm[:, None], out=ng, where=norm[:, None] > 0)
+        ng[norm == 0] = 0.0
+
+    def _same_block(self, mesh: Mesh, a: int, b: int, va: int, vb: int):
+        """(Embree scene, first triangle) of this Accel's block holding the same triangles over
+        the same vertex positions as mesh's block [a, b) on vertices [va, vb), or None."""
+        for embree, pa, pva, n, nv in self._blocks:
+            if n != b - a or nv != vb - va or \
+                    not np.array_equal(self.mesh.vertices[pva:pva + nv], mesh.vertices[va:vb]):
+                continue
+            mine, theirs = self.mesh.triangles[pa:pa + n], mesh.triangles[a:b]
+            if np.array_equal(mine, theirs) if pva == va else np.array_equal(mine - pva, theirs - va):
+                return embree, pa
+        return None
 
     def _build(self, vertices, triangles):
         from embreex import rtcore as rtc
@@ -102,9 +138,10 @@ class Accel:
         their index in the full mesh): what one kind of ray sees when objects are hidden from
         it (Cycles' ray visibility). Shares this one's per-triangle arrays."""
         view = object.__new__(Accel)
-        view.__dict__.update({k: v for k, v in self.__dict__.items() if k not in ("_device", "_embree")})
+        view.__dict__.update({k: v for k, v in self.__dict__.items() if k not in ("_device", "_embree", "_blocks")})
         view._global_prim = np.asarray(triangles, np.int64)
         view._embree = view._build(mesh.vertices, mesh.triangles[triangles]) if len(triangles) else None
+        view._blocks = [(view._embree, 0, 0, len(triangles), len(mesh.vertices))] if len(triangles) else []
         return view
 
     def _prims(self, prim_id) -> np.ndarray:
@@ -115,11 +152,21 @@ class Accel:
         return prim
 
     def _run(self, o32, d32, tfar32, query):
+        """Embree's answer over every block: the closest hit (primID counted over the whole
+        mesh) or, for OCCLUDED, >= 0 where any block blocks the segment."""
         t0 = time.perf_counter()
         if query == "INTERSECT":
             out = self._embree.run(o32, d32, dists=tfar32, output=1)
+            for embree, a, _, _, _ in self._blocks[1:]:  # later blocks: only hits closer than the best so far
+                more = embree.run(o32, d32, dists=out["tfar"].copy(), output=1)
+                closer = more["primID"] >= 0
+                for key in ("tfar", "u", "v"):
+                    out[key] = np.where(closer, more[key], out[key])
+                out["primID"] = np.where(closer, more["primID"] + a, out["primID"])
         else:
             out = self._embree.run(o32, d32, dists=tfar32, query="OCCLUDED")
+            for embree, _, _, _, _ in self._blocks[1:]:
+                out = np.maximum(out, embree.run(o32, d32, dists=tfar32.copy(), query="OCCLUDED"))
         dt = time.perf_counter() - t0
         stats = self._stats
         with stats._lock:
@@ -203,6 +250,32 @@ class Accel:
                 real &= hit.prim != target_prim[rows]
             blocked[rows] = real
         return blocked
+
+
+BLOCK_MIN = 1 << 17  # triangles of an object that gets an Embree scene of its own
+MAX_BLOCKS = 4  # Embree calls per query at most (the biggest objects get their own)
+BUILT = [0]  # Embree scenes built by this process (tests)
+
+
+def blocks(mesh: Mesh) -> list[tuple[int, int]]:
+    """Triangle ranges [a, b) that get an Embree scene each: every object (Mesh.objects) of at
+    least BLOCK_MIN triangles alone, the rest together between them. A scene without such
+    objects is one block. A big object's scene then survives edits elsewhere (an object
+    moved, added or deleted), at the price of one more Embree call per query and block:
+    embreex offers neither instances nor refits, which would do the same inside Embree."""
+    n = mesh.n_triangles
+    if n == 0:
+        return []
+    bounds = getattr(mesh, "objects", None)
+    if bounds is None:
+        return [(0, n)]
+    cuts = {0, n}
+    size = np.diff(bounds)
+    for i in np.argsort(-size, kind="stable")[:MAX_BLOCKS - 1]:
+        if size[i] >= BLOCK_MIN:
+            cuts |= {int(bounds[i]), int(bounds[i + 1])}
+    cuts = sorted(cuts)
+    return list(zip(cuts[:-1], cuts[1:]))
 
 
 def _bounding_radius(v: np.ndarray) -> float:

@@ -78,6 +78,9 @@ class Mesh:
     coordinates of the active render UV map (zeros without one, as Cycles);
     visibility (T,) uint8 RAY_* bits (+ HOLDOUT) of each triangle's object, or None: every
     triangle seen by every ray, no holdout.
+    objects (B+1,) int64 triangle offsets of the exported objects (each triangle range uses
+    its own vertices), or None: engine/accel.py gives big objects an Embree scene of their
+    own, kept when only other objects change.
     """
 
     vertices: np.ndarray
@@ -86,6 +89,7 @@ class Mesh:
     material: np.ndarray
     uvs: np.ndarray = None
     visibility: np.ndarray = None
+    objects: np.ndarray = None
 
     def __post_init__(self):
         if self.uvs is None:

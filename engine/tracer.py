@@ -87,8 +87,8 @@ class Tracer:
 
         if kept("mesh"):
             self.accel = previous.accel
-        else:
-            self.accel = Accel(scene.mesh)
+        else:  # Embree scenes of unchanged big objects are kept (engine/accel.py's blocks)
+            self.accel = Accel(scene.mesh, previous.accel if previous is not None else None, split=s.persistent)
             BUILDS["embree"] += 1
         same_settings = previous is not None and (previous.scene.settings.strategy, previous.scene.settings.film_transparent) \
             == (s.strategy, s.film_transparent)

@@ -69,7 +69,7 @@ class ViewportSession:
         self._closed = False
         self._buffer = None  # (version, flat float32 RGBA, width, height, samples)
         self._version = 0
-        self.stats = []  # per update: dict(builds, first_image, samples) (bench/viewport.py, tests)
+        self.stats = []  # per update: dict(builds, first_image, samples, stopped) (bench/viewport.py, tests)
         self.error = None  # the last render's exception message, if it failed
         self.pool = None  # the worker processes, kept across updates (render thread)
         self.stage_cache = StageCache()
@@ -81,6 +81,7 @@ class ViewportSession:
         """Render `scene` from now on (recentred like the last one: the exporter's origin)."""
         with self._cond:
             self._job = scene
+            self._updated = time.perf_counter()
             self._restart.set()
             self._cond.notify()
         self._interrupt()
@@ -128,20 +129,22 @@ class ViewportSession:
                     self._cond.wait()
                 if self._closed:
                     return
-                scene, self._job = self._job, None
+                scene, self._job, updated = self._job, None, self._updated
                 self._restart.clear()
                 self._running = True
             try:
-                self._render(scene)
+                self._render(scene, updated)
             except Exception as e:  # shown by the engine; the thread must survive bad scenes
                 self.error = f"{type(e).__name__}: {e}"
             finally:
                 with self._cond:
                     self._running = False
 
-    def _render(self, scene: Scene) -> None:
-        t0 = time.perf_counter()
-        record = dict(builds={}, first_image=None, samples=[])
+    def _render(self, scene: Scene, updated: float) -> None:
+        """updated: the clock of the update that asked for it (times count from there)."""
+        t0 = updated
+        # stopped: seconds from the update until the last render had stopped (cancel latency)
+        record = dict(builds={}, first_image=None, samples=[], stopped=time.perf_counter() - updated)
         started = workers.STARTED[0]
         self.stats.append(record)
         self.error = None

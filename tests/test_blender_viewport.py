@@ -16,10 +16,12 @@ bpy = pytest.importorskip("bpy")
 
 import ember  # noqa: E402
 from ember.engine.blender import viewport as bviewport  # noqa: E402
+from ember.engine.blender import export_mesh  # noqa: E402
 from ember.engine.blender.export import export_scene  # noqa: E402
 from ember.engine import viewport as core_viewport  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+KEEPS_MESHES = []  # keeps_meshes() of each depsgraph update the cornell fixture saw
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -45,6 +47,7 @@ def cornell():
 
     def handler(scene, depsgraph):
         captured.append(bviewport.classify(depsgraph.updates))
+        KEEPS_MESHES.append(bviewport.keeps_meshes(depsgraph.updates))
 
     bpy.app.handlers.depsgraph_update_post.append(handler)
     yield sc, captured
@@ -71,7 +74,7 @@ EDITS = {
 
 
 @pytest.mark.parametrize("edit", list(EDITS))
-def test_an_edit_reexports_exactly_its_part(cornell, edit):
+def test_an_edit_reexports_exactly_its_part(cornell, edit, monkeypatch):
     """Each kind of edit classifies to its part, LiveExport re-exports that part alone, and
     the updated scene equals a full export of the edited scene in that part."""
     sc, captured = cornell
@@ -80,12 +83,22 @@ def test_an_edit_reexports_exactly_its_part(cornell, edit):
     live.calls.clear()
     fn, want = EDITS[edit]
     captured.clear()
+    KEEPS_MESHES.clear()
     fn(sc)
     bpy.context.view_layer.update()
     parts = set().union(*captured)
     assert parts == want, (edit, captured)
-    live.update(depsgraph, parts)
+    keep = all(KEEPS_MESHES)
+    assert keep == (edit != "geometry")  # a moved object's mesh is not extracted again
+    extracted = []
+    monkeypatch.setattr(export_mesh, "extract_mesh",
+                        lambda ob, real=export_mesh.extract_mesh: extracted.append(ob.name) or real(ob))
+    live.update(depsgraph, parts, keep)
     assert set(live.calls) == want and all(n == 1 for n in live.calls.values())
+    if edit == "transform":
+        assert extracted == []
+    elif edit == "geometry":
+        assert len(extracted) >= 2  # every mesh again (the edited one among them)
     full, _ = export_scene(bpy.context.evaluated_depsgraph_get(), overrides=dict(width=32, height=32, passes=()))
     part = {"geometry": "mesh", "materials": "materials", "lights": "lights", "world": "world",
             "camera": "camera", "settings": "settings"}[next(iter(want))]

@@ -50,7 +50,9 @@ class Warnings(list):
 
 
 def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
-                 progress=None) -> tuple[Scene, list[str]]:
+                 progress=None, protos: dict | None = None) -> tuple[Scene, list[str]]:
+    """protos: meshes already extracted (MeshCollector's cache, kept by the viewport across
+    edits that leave every mesh's geometry alone); filled with the ones extracted now."""
     warn = Warnings()
     report = progress or (lambda message: None)
 
@@ -68,7 +70,7 @@ def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
     check()
 
     materials = MaterialTable(warn, depsgraph.scene)
-    meshes = MeshCollector(materials, warn, getattr(depsgraph.view_layer_eval, "material_override", None))
+    meshes = MeshCollector(materials, warn, getattr(depsgraph.view_layer_eval, "material_override", None), protos)
     light_rows = []
     visibility = {}  # original object pointer -> render it?
     report("Export: objects")

@@ -198,11 +198,13 @@ def _normalize_rows(v: np.ndarray) -> np.ndarray:
 class MeshCollector:
     """Fed with every visible MESH instance during the depsgraph walk, then `build()`."""
 
-    def __init__(self, materials, warn, material_override=None):
+    def __init__(self, materials, warn, material_override=None, protos: dict | None = None):
+        """protos: extracted meshes by evaluated mesh pointer, from an earlier export of the
+        same geometry (the viewport's), added to here."""
         self._materials = materials
         self._warn = warn
         self._override = material_override  # view layer material override (as Cycles)
-        self._protos: dict[int, _Proto | None] = {}
+        self._protos: dict[int, _Proto | None] = {} if protos is None else protos
         self._groups: dict[tuple, list] = {}
         self._slot_cache: dict[tuple, tuple] = {}
 
@@ -301,6 +303,7 @@ class MeshCollector:
 
         default = None
         v0 = t0 = 0
+        starts = []
         for gi, (proto, mats, vis, M, det) in enumerate(plan):
             check()
             report(f"Export: meshes {gi + 1}/{len(plan)}")
@@ -333,6 +336,7 @@ class MeshCollector:
                 else:
                     Rinv = np.linalg.inv(R).astype(np.float32)
                     N = _normalize_rows(np.matmul(corners[None], Rinv)).reshape(k, T, 3, 3)
+                starts.extend(t0 + T * np.arange(k))  # each instance is an object (Mesh.objects)
                 offs = (v0 + V * np.arange(k, dtype=np.int64))[:, None, None]
                 neg = dc < 0
                 tri = np.where(neg[:, None, None], flipped_tris[None], proto.triangles[None]) + offs
@@ -357,4 +361,5 @@ class MeshCollector:
                     self._warn(f"{what}: '{name}'.")
         everything = bool(np.all(visibility == RAY_ALL))  # the common case: no array to carry
         return Mesh(vertices=vertices, triangles=triangles, normals=normals, material=material, uvs=uvs,
-                    visibility=None if everything else visibility)
+                    visibility=None if everything else visibility,
+                    objects=np.array(starts + [n_tri], np.int64) if starts else None)

@@ -64,6 +64,20 @@ def classify(updates) -> set:
     return parts
 
 
+def keeps_meshes(updates) -> bool:
+    """Whether the meshes extracted for the last export still hold after `updates`: every
+    update that touches geometry only moved an object (a transform); a mesh edit, a modifier,
+    an object added or deleted (a freed mesh's address may come back) extract again."""
+    for u in updates:
+        kind = type(u.id).__name__
+        if kind == "Object" and getattr(u.id, "type", "") not in ("LIGHT", "CAMERA"):
+            if u.is_updated_geometry:
+                return False
+        elif kind in ("Mesh", "Collection") and (kind == "Collection" or u.is_updated_geometry):
+            return False
+    return True
+
+
 def view_camera(view_matrix, window_matrix, clip_start: float, clip_end: float) -> Camera:
     """Camera of a 3D view from its view matrix (camera from world) and window (projection)
     matrix, both 4x4 nested sequences as mathutils gives them: the image rectangle at z = -1
@@ -90,11 +104,12 @@ class LiveExport:
         self.calls = Counter()
         self.warnings: list[str] = []
         self.camera = None  # a view's camera replacing the scene's (free navigation)
+        self.protos = {}  # meshes extracted by the last export (export_mesh.MeshCollector)
         self.scene = self._full(depsgraph)
 
     def _full(self, depsgraph):
         self.calls["geometry"] += 1
-        scene, warnings = export_scene(depsgraph, overrides=self.overrides)
+        scene, warnings = export_scene(depsgraph, overrides=self.overrides, protos=self.protos)
         self.warnings = list(warnings)
         self.origin = np.asarray(scene.settings.origin, np.float64)
         return scene if self.camera is None else scene.replace(camera=self._shift_camera(self.camera))
@@ -115,10 +130,13 @@ class LiveExport:
             self.scene = self.scene.replace(camera=self._shift_camera(camera))
         return True
 
-    def update(self, depsgraph, parts: set) -> set:
+    def update(self, depsgraph, parts: set, keep_meshes: bool = False) -> set:
         """Re-export `parts` from depsgraph; returns the parts that changed (what the render
-        thread must rebuild)."""
+        thread must rebuild). keep_meshes: the edit only moved objects (`keeps_meshes`), so
+        the geometry is re-placed from the meshes extracted before, not extracted again."""
         if "geometry" in parts:
+            if not keep_meshes:
+                self.protos = {}
             self.scene = self._full(depsgraph)
             return set(PARTS)
         warn = Warnings()
@@ -194,7 +212,7 @@ class ViewportDriver:
                 if not parts:
                     return
                 try:
-                    parts = self.export.update(depsgraph, parts)
+                    parts = self.export.update(depsgraph, parts, keeps_meshes(depsgraph.updates))
                 except EmberError:
                     parts = self.export.update(depsgraph, parts | {"geometry"})
         except EmberError as e:

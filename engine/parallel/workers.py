@@ -10,7 +10,9 @@ requests over its pipes.
 
 Messages are length-prefixed pickles. Parent -> worker: ("cancel", segment name) once, the
 pool's cancel counter (below); ("scene", parts) at the start of every render (part name ->
-plain arrays, or None for a part unchanged since the last scene: persistent data), ("run",
+plain arrays, or None for a part unchanged since the last scene: persistent data; a part of
+SHARED_PART bytes or more - a mesh - comes as ("shared", handle, its other fields), its arrays
+in a shared-memory segment that the parent unlinks once every worker has built), ("run",
 stage as a dict, item, epoch), ("install", version, shared-memory handle), `None` to quit.
 Worker -> parent, one answer per scene or run, in order: ("done", result...), ("cancelled",)
 or ("error", text); a scene's result is what it built ({"embree": 0 or 1, ...}). Installs
@@ -48,8 +50,10 @@ from multiprocessing import shared_memory
 import numpy as np
 
 from ..errors import Cancelled, EmberError
+from .shared import Publisher
 
 _HEADER = struct.Struct("<Q")
+SHARED_PART = 1 << 20  # bytes of arrays from which a scene part reaches the workers through shared memory
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
@@ -82,6 +86,7 @@ def serve(fin, fout) -> None:
 
     tracer, plain = None, {}
     epoch = None  # the pool's cancel counter (a one-element view of shared memory)
+    held = {}  # scene part name -> the Attachment its arrays live in (big parts)
     current = {}  # array name -> the Attachment holding its latest version
     deferred = None  # an install's failure, reported as the next request's answer
     try:
@@ -92,12 +97,20 @@ def serve(fin, fout) -> None:
             try:
                 if msg[0] == "scene":
                     changed = {name for name, part in msg[1].items() if part is not None}
-                    plain.update({name: part for name, part in msg[1].items() if part is not None})
+                    replaced = [held.pop(name) for name in changed if name in held]
+                    for name in changed:
+                        part = msg[1][name]
+                        if isinstance(part, tuple):  # ("shared", handle, fields not in it)
+                            held[name] = Attachment(part[1])
+                            part = {**part[2], **held[name].arrays}
+                        plain[name] = part
                     for attachment in set(current.values()):  # the last render's published arrays
                         attachment.close()
                     current = {}
                     before = dict(BUILDS)
                     tracer = Tracer(scene_from_plain(plain), tracer, changed)
+                    for attachment in replaced:  # the parts they held are gone with the old tracer
+                        attachment.close()
                     write_message(fout, ("done", {k: BUILDS[k] - before[k] for k in BUILDS}))
                     continue
                 if msg[0] == "cancel":
@@ -274,9 +287,20 @@ class WorkerPool:
         now = part_digests(scene)
         parts = {name: (to_plain(getattr(scene, name)) if now[name] != self.digests.get(name) else None)
                  for name in now}
-        futures = [w.request(("scene", parts)) for w in self.workers]
-        self.digests = {}  # unknown until every worker has it
-        built = [f.result()[0] for f in futures]
+        # A big part (a mesh) goes through shared memory: written once, not pickled down every
+        # pipe. The segment is unlinked once every worker has mapped it.
+        shared = Publisher()
+        try:
+            for name, part in parts.items():
+                arrays = {k: v for k, v in (part or {}).items() if isinstance(v, np.ndarray) and v.dtype != object}
+                if sum(a.nbytes for a in arrays.values()) >= SHARED_PART:
+                    rest = {k: v for k, v in part.items() if k not in arrays}
+                    parts[name] = ("shared", shared.publish(arrays), rest)
+            futures = [w.request(("scene", parts)) for w in self.workers]
+            self.digests = {}  # unknown until every worker has it
+            built = [f.result()[0] for f in futures]
+        finally:
+            shared.release()
         self.digests = now
         return {k: max(b[k] for b in built) for k in built[0]}
 
