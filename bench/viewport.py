@@ -5,7 +5,11 @@ same driver Blender calls (engine/blender/viewport.py) with a fake region and no
     ./dev python bench/viewport.py [--size 480x270] [--samples 16] [--out bench/results/viewport]
 
 Times are wall seconds from the call that started the render (view_update or the view
-change) to the first buffer handed to drawing and to the buffer with N samples.
+change) to the first buffer handed to drawing and to the buffer with N samples. `restart`
+is an edit made while a render is running (at 4 samples): `restart_stopped_s` is the time
+from the update until the running render has stopped (its items in the workers cancelled),
+the cancel latency. The 1-minute load average is recorded before and after each scene: the
+machine is shared.
 """
 from __future__ import annotations
 
@@ -47,14 +51,16 @@ def _context(sc, depsgraph, width, height):
                                  space_data=types.SimpleNamespace(clip_start=0.01, clip_end=100.0), scene=sc)
 
 
-def _run_until(driver, engine, context, depsgraph, samples, t0, after=0):
-    """(time to first image, time to `samples`) after t0, drawing as Blender would."""
+def _run_until(driver, engine, context, depsgraph, samples, t0, after=0, fresh=None):
+    """(time to first image, time to `samples`) after t0, drawing as Blender would; fresh:
+    the number of renders started before t0 (only a later render's images count)."""
     first = None
     drawn = []
     bviewport.draw = lambda engine, scene, latest: drawn.append(latest)
     while True:
         driver.view_draw(engine, context, depsgraph)
-        if drawn and drawn[-1][0] > after:
+        new = fresh is None or (len(driver.session.stats) > fresh and driver.session.stats[-1]["first_image"])
+        if drawn and drawn[-1][0] > after and new:
             now = time.perf_counter() - t0
             first = first if first is not None else now
             if drawn[-1][4] >= samples:
@@ -104,6 +110,18 @@ def measure(label, sc, width, height, samples):
         context.region_data.view_matrix[0][3] += 0.05
         first, full, version = _run_until(driver, engine, context, depsgraph, samples, t, version)
         out["view_first_image_s"], out["view_samples_s"] = first, full
+        out["view_builds"] = driver.session.stats[-1]["builds"]
+        # An edit while the render runs: how soon it stops, and the new first image.
+        sc.ember.preview_samples = 1000
+        t = edit(lambda: setattr(bpy.data.lights["bench_lamp"], "energy", 30.0))
+        _run_until(driver, engine, context, depsgraph, 4, t, version)
+        n = len(driver.session.stats)
+        t = edit(lambda: setattr(bpy.data.lights["bench_lamp"], "energy", 35.0))
+        first, _, version = _run_until(driver, engine, context, depsgraph, 1, t, fresh=n)
+        out["restart_first_image_s"] = first
+        out["restart_stopped_s"] = driver.session.stats[-1]["stopped"]
+        out["processes"] = driver.session.stats[-1].get("processes", 0)
+        out["workers_started"] = sum(r["builds"].get("workers", 0) for r in driver.session.stats)
     finally:
         driver.free()
     return out
@@ -130,7 +148,9 @@ def main():
         if sphere:
             bpy.ops.mesh.primitive_uv_sphere_add(segments=1000, ring_count=500, radius=0.25, location=(0.3, -0.2, 1.0))
         bpy.context.view_layer.update()
+        load = os.getloadavg()[0]
         rows.append(measure(label, sc, width, height, args.samples))
+        rows[-1]["load_average_1min"] = (load, os.getloadavg()[0])
         print(json.dumps(rows[-1]), flush=True)
     rows.append(dict(load_average=os.getloadavg()))
     out = pathlib.Path(args.out)

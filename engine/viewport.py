@@ -27,6 +27,7 @@ import time
 
 import numpy as np
 
+from . import tracer as tracer_mod
 from .parallel import workers
 from .scene import Scene
 from .session import RenderSession
@@ -152,7 +153,12 @@ class ViewportSession:
         for factor in (self.pixel_size, 1):
             if self._stop():
                 return
+            starting = self.pool is None
             pool = self._pool(s.threads)
+            if starting and factor > 1:
+                # The workers take a second to start and load the scene: the first coarse image
+                # is traced here meanwhile (and the tracer dropped after it).
+                pool = None
             level = coarse_scene(scene, factor) if factor > 1 else scene
             ls = level.settings
             # Without workers this process traces alone (threads=1: no pool of its own either).
@@ -178,10 +184,14 @@ class ViewportSession:
                 if self.on_image is not None:
                     self.on_image()
 
-            stats = session.run(on_update=publish, should_stop=self._stop)
+            record["processes"] = session.processes
+            try:
+                stats = session.run(on_update=publish, should_stop=self._stop)
+            finally:
+                if pool is None and self.pool is not None:  # the workers trace from now on
+                    tracer_mod.forget()
             for key, n in stats.builds.items():
                 record["builds"][key] = record["builds"].get(key, 0) + n
-            record["processes"] = stats.processes
             record["builds"]["workers"] = workers.STARTED[0] - started
 
     def _pool(self, threads: int):
