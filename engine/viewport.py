@@ -34,6 +34,9 @@ from .session import RenderSession
 from .stage_cache import StageCache
 
 HALF_MAX = 65504.0  # the draw texture is half float: larger values would become inf
+# Triangles up to which the first coarse image is traced in this process while the workers
+# start (beyond, a third Embree build beside the workers' two would delay everything).
+IN_PROCESS_FIRST = 1 << 17
 
 
 def draw_buffer(image: np.ndarray) -> np.ndarray:
@@ -155,9 +158,9 @@ class ViewportSession:
                 return
             starting = self.pool is None
             pool = self._pool(s.threads)
-            if starting and factor > 1:
+            if starting and factor > 1 and scene.mesh.n_triangles < IN_PROCESS_FIRST:
                 # The workers take a second to start and load the scene: the first coarse image
-                # is traced here meanwhile (and the tracer dropped after it).
+                # of a small scene is traced here meanwhile (and the tracer dropped after it).
                 pool = None
             level = coarse_scene(scene, factor) if factor > 1 else scene
             ls = level.settings
