@@ -23,7 +23,7 @@ from .scene import digest, part_digests
 # the camera pass compute.
 VIEW_ONLY = ("width", "height", "border", "samples", "sample_offset", "time_limit", "noise_target", "threads",
              "batch_size", "persistent", "passes", "adaptive", "adaptive_threshold", "adaptive_min_samples")
-MAX_BYTES = 512 << 20  # ppm's per-pass photon maps would otherwise grow with the viewport's passes
+MAX_BYTES = 256 << 20  # ppm's per-pass photon maps would otherwise grow with the viewport's passes
 
 
 def scene_key(scene) -> str:
