@@ -50,9 +50,10 @@ class Warnings(list):
 
 
 def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
-                 progress=None, protos: dict | None = None) -> tuple[Scene, list[str]]:
+                 progress=None, protos: dict | None = None, placed: dict | None = None) -> tuple[Scene, list[str]]:
     """protos: meshes already extracted (MeshCollector's cache, kept by the viewport across
-    edits that leave every mesh's geometry alone); filled with the ones extracted now."""
+    edits that leave every mesh's geometry alone); filled with the ones extracted now.
+    placed: where the last export put them in world space (MeshCollector.build)."""
     warn = Warnings()
     report = progress or (lambda message: None)
 
@@ -99,7 +100,7 @@ def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
     check()
 
     origin = scene_origin(meshes.bounds(), [r["position"] for r in light_rows], camera)
-    mesh = meshes.build(check, report, origin)
+    mesh = meshes.build(check, report, origin, placed)
     check()
     lights = Lights.make(light_rows)
     report("Export: world")

@@ -264,9 +264,12 @@ class MeshCollector:
             return np.zeros((0, 3))
         return np.array([np.min(lo, axis=0), np.max(hi, axis=0)])
 
-    def build(self, check=lambda: None, report=lambda msg: None, origin=None) -> Mesh:
+    def build(self, check=lambda: None, report=lambda msg: None, origin=None, placed: dict | None = None) -> Mesh:
         """The world-space triangle soup; with `origin` (3,) the world is shifted so that it
-        becomes (0, 0, 0), in float64 before the float32 store (precision far from 0)."""
+        becomes (0, 0, 0), in float64 before the float32 store (precision far from 0).
+        placed: the last build's mesh and where each group went in it (the viewport's; read
+        and replaced here): a group of the same mesh, materials and transforms is copied from
+        there instead of transformed again."""
         shift = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
         plan = []  # (proto, material lookup, visibility, matrices (k,4,4), det (k,))
         n_vert = n_tri = 0
@@ -304,10 +307,26 @@ class MeshCollector:
         default = None
         v0 = t0 = 0
         starts = []
+        last = placed.get("mesh") if placed is not None else None
+        was, now = (placed.get("groups", {}) if placed is not None else {}), {}
         for gi, (proto, mats, vis, M, det) in enumerate(plan):
             check()
             report(f"Export: meshes {gi + 1}/{len(plan)}")
             V, T = len(proto.positions), len(proto.triangles)
+            key = (mats, vis, M.tobytes(), shift.tobytes())
+            now[key] = (proto, v0, t0)
+            old = was.get(key)
+            if last is not None and old is not None and old[0] is proto:  # placed as before: copy
+                _, pv, pt = old
+                nv, nt = len(M) * V, len(M) * T
+                vertices[v0:v0 + nv] = last.vertices[pv:pv + nv]
+                triangles[t0:t0 + nt] = last.triangles[pt:pt + nt] + (v0 - pv)
+                normals[t0:t0 + nt], uvs[t0:t0 + nt] = last.normals[pt:pt + nt], last.uvs[pt:pt + nt]
+                material[t0:t0 + nt] = last.material[pt:pt + nt]
+                visibility[t0:t0 + nt] = vis
+                starts.extend(t0 + T * np.arange(len(M)))
+                v0, t0 = v0 + nv, t0 + nt
+                continue
             if mats:
                 lut = np.array(mats, np.int32)
                 mat_local = lut[np.clip(proto.slot, 0, len(lut) - 1)]
@@ -360,6 +379,9 @@ class MeshCollector:
                 else:
                     self._warn(f"{what}: '{name}'.")
         everything = bool(np.all(visibility == RAY_ALL))  # the common case: no array to carry
-        return Mesh(vertices=vertices, triangles=triangles, normals=normals, material=material, uvs=uvs,
+        mesh = Mesh(vertices=vertices, triangles=triangles, normals=normals, material=material, uvs=uvs,
                     visibility=None if everything else visibility,
                     objects=np.array(starts + [n_tri], np.int64) if starts else None)
+        if placed is not None:
+            placed.update(mesh=mesh, groups=now)
+        return mesh

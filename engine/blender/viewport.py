@@ -105,11 +105,12 @@ class LiveExport:
         self.warnings: list[str] = []
         self.camera = None  # a view's camera replacing the scene's (free navigation)
         self.protos = {}  # meshes extracted by the last export (export_mesh.MeshCollector)
+        self.placed = {}  # and where it placed them (MeshCollector.build)
         self.scene = self._full(depsgraph)
 
     def _full(self, depsgraph):
         self.calls["geometry"] += 1
-        scene, warnings = export_scene(depsgraph, overrides=self.overrides, protos=self.protos)
+        scene, warnings = export_scene(depsgraph, overrides=self.overrides, protos=self.protos, placed=self.placed)
         self.warnings = list(warnings)
         self.origin = np.asarray(scene.settings.origin, np.float64)
         return scene if self.camera is None else scene.replace(camera=self._shift_camera(self.camera))
@@ -136,7 +137,7 @@ class LiveExport:
         the geometry is re-placed from the meshes extracted before, not extracted again."""
         if "geometry" in parts:
             if not keep_meshes:
-                self.protos = {}
+                self.protos, self.placed = {}, {}
             self.scene = self._full(depsgraph)
             return set(PARTS)
         warn = Warnings()
