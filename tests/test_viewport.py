@@ -144,10 +144,10 @@ def test_photon_maps_survive_a_camera_move(name):
     """The photon stages run once for a scene and are reused (not run) when only the camera
     moves - also by the full-resolution level after the coarse one; a light change runs them
     again. The moved view's image equals a fresh RenderSession's (stored results are exact).
-    icache's records depend on the view and run again (not counted here)."""
+    icache (with photon-map gathers: it builds a global map) runs its view-dependent records again (not counted here)."""
     scene = sphere_with_point_light(width=12, height=8, samples=2, threads=2)
     scene = scene.replace(settings=scene.settings.replace(integrator=name, photons=3000, caustic_photons=0,
-                                                          gather_rays=2, icache_rays=50))
+                                                          gather_rays=2, icache_rays=50, icache_gather="photon"))
     view = viewport.ViewportSession(pixel_size=2)
     cache = view.stage_cache
     try:
