@@ -12,7 +12,8 @@ its noise falls fast - open scenes under a sky (hdri: 6-17x less error than the 
 caustic of a small or point light: 15x the photon map's error at 8 s) or where diffuse
 interreflection dominates: with records refined between pass blocks and path-traced gathers
 the irradiance cache beat it on the interior (4.5x at 8 s), on the Cornell box, open at the
-front (28 % of probe rays escape; 1.2x at 8 s, 1.1x at 30 s), and on its hard variants (a
+front (28 % of probe rays escape; 1.2x at 8 s, 1.1x at 30 s in one run, but the bench run
+after it had the path tracer ahead, 1.35x and 2.8x: not settled), and on its hard variants (a
 light 5 mm from a wall: 5x at both budgets; a 1 cm light: 70x and 47x).
 For caustics, path tracing with a caustic map (`path_caustic`) beat `photon` at 30 s (caustic
 7.2e-3 against 1.0e-2, caustic_point 5.3e-3 against 5.7e-3, at a load of 9) but lost 4-7x at
