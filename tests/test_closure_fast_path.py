@@ -1,7 +1,8 @@
 """The Lambert fast path gives exactly what the general lobe-table closure gives."""
 import numpy as np
 
-from ember.engine.bsdf.closure import Closure, LambertClosure, make_closure, plain_lambert_albedo
+from ember.engine.bsdf.closure import Closure
+from ember.engine.bsdf.fast_path import LambertClosure, make_closure, plain_lambert_albedo
 from ember.engine.scene import MAT_DIFFUSE, MAT_EMISSION_ONLY, Materials
 
 from core_scenes import furnace_box

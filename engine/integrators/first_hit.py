@@ -11,7 +11,7 @@ import numpy as np
 
 from .. import camera as camera_mod
 from .. import passes as passes_mod
-from ..bsdf.closure import make_closure, plain_lambert_albedo
+from ..bsdf.fast_path import make_closure, plain_lambert_albedo
 from ..scene import RAY_CAMERA, Scene
 from ..vec import take
 from ..visibility import RayVisibility

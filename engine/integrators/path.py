@@ -23,8 +23,8 @@ from ..vec import dot, gatherer, max3, scale, take
 
 from .. import camera as camera_mod
 from ..accel import Accel, offset_origin
-from ..bsdf.closure import (LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT, make_closure,
-                            plain_lambert_albedo)
+from ..bsdf.closure import LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT
+from ..bsdf.fast_path import make_closure, plain_lambert_albedo
 from ..errors import Cancelled
 from ..lights.light_set import LightSet
 from ..rng import Sampler

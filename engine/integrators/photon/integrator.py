@@ -26,7 +26,7 @@ import numpy as np
 from ... import camera as camera_mod
 from ... import rng
 from ...accel import offset_origin
-from ...bsdf.closure import make_closure, plain_lambert_albedo
+from ...bsdf.fast_path import make_closure, plain_lambert_albedo
 from ...errors import Cancelled
 from ...lights.emission import PhotonEmitter
 from ...vec import dot, gatherer, max3, scale, take

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...accel import offset_origin
-from ...bsdf.closure import make_closure, plain_lambert_albedo
+from ...bsdf.fast_path import make_closure, plain_lambert_albedo
 from ...errors import Cancelled
 from ...scene import LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_PHONG, Materials
 from ...vec import dot, max3, scale, take
