@@ -18,6 +18,7 @@ from scipy import stats as st
 from ember.engine import sampling
 from ember.engine.accel import Accel
 from ember.engine.bsdf import closure as closure_mod
+from ember.engine.bsdf import fast_path
 from ember.engine.bsdf import dielectric, microfacet, phong
 from ember.engine.lights.light_set import LightSet
 from ember.engine.scene import (FRESNEL_NONE, LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LOBE_DIELECTRIC,
@@ -101,7 +102,7 @@ def _lambert_density(n):
 def case_lambert_closure():
     rng = np.random.default_rng(1)
     ns = np.tile(TILT, (N, 1))
-    c = closure_mod.LambertClosure(np.full((N, 3), 0.7), ns, ns.copy())
+    c = fast_path.LambertClosure(np.full((N, 3), 0.7), ns, ns.copy())
     s = c.sample(rng.random((N, 2)), rng.random(N))
     assert s.valid.all() and not s.delta.any()
     np.testing.assert_allclose(s.pdf, np.maximum(s.wi @ TILT, 0) / np.pi, rtol=1e-9)  # its pdf is cos / pi

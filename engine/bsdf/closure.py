@@ -405,7 +405,10 @@ class Closure:
         delta = np.zeros(n, bool)
         if self.single:  # pair i is point i, chosen with probability 1
             live = np.flatnonzero(self.pair_select > 0)
-            pick, share, u_branch = live, self.pair_select[live], u_lobe[live]
+            # u in [0, 1) as _choose_lobes leaves it: u = 1 picked refraction under total
+            # internal reflection (F = 1), a wi of length 1.2 (found by tests/test_fuzz.py)
+            pick, share = live, self.pair_select[live]
+            u_branch = np.minimum(u_lobe[live], sampling.ONE_MINUS_EPSILON)
         else:
             live, pick, share, u_branch = self._choose_lobes(u_lobe)
         kind = self.pair_kind[pick]
