@@ -19,7 +19,10 @@ and photon tracer the integrators use:
 - indirect / direct: at the camera's first diffuse hits, the path tracer's radiance with one
   bounce (direct light: NEE and BSDF hits, MIS) and with up to PILOT_DEPTH bounces; their
   difference is the indirect light (what path tracing finds: caustics of delta lights are
-  counted by the caustic pilot, not here).
+  counted by the caustic pilot, not here). Its noise: the second moment of one path's
+  indirect light over the squared mean radiance, E[I^2] / E[L]^2, the relative variance the
+  indirect light adds to a path-traced sample (a light next to a wall: a hot spot that few
+  bounce rays find, 45; the Cornell box, 1.2).
 - caustics (L S+ D): possible when specular surfaces and lights exist; a pilot of photons
   (the photon map's own tracer) measures the share of the flux arriving at diffuse surfaces
   that came through specular bounces only.
@@ -83,6 +86,7 @@ class SceneAnalysis:
     pixel_footprint: float  # m: median width of a pixel at the camera's first hits
     escape_share: float  # probe rays from the first hits that hit nothing
     indirect_ratio: float  # indirect / direct radiance at the first diffuse hits
+    indirect_noise: float  # E[I^2] / E[L]^2 of one path sample there (I indirect, L all light)
     pilot_rays: int  # every ray the pilots traced (camera, probes, paths, shadows, photons)
     pilot_photons: int
     seconds: float
@@ -223,15 +227,18 @@ def _escape_pilot(scene, accel, hit, d, seed, probes=4):
 
 
 def _indirect_pilot(scene, accel, lights, sampler, o, d, tmax, diffuse_first):
-    """sum(indirect) / sum(direct) radiance (mean RGB) over rays whose first hit is diffuse."""
+    """(indirect / direct, E[I^2] / E[L]^2): radiance (mean RGB) over rays whose first hit is
+    diffuse, I its indirect part and L all of it."""
     tracer = PathTracer(scene, accel, lights)
     o32 = o.astype(np.float32)
     skip = np.full(len(d), -1, np.int64)
     direct = tracer.trace(sampler, o, o32, d, tmax, skip, first_emission=False, max_depth=1)
     total = tracer.trace(sampler, o, o32, d, tmax, skip, first_emission=False, max_depth=PILOT_DEPTH)
-    direct_sum = float(direct[diffuse_first].mean(axis=1).sum())
-    indirect_sum = float((total - direct)[diffuse_first].mean(axis=1).sum())
-    return indirect_sum / direct_sum if direct_sum > 0 else (float("inf") if indirect_sum > 0 else float("nan"))
+    indirect = (total - direct)[diffuse_first].mean(axis=1)
+    direct, total = direct[diffuse_first].mean(axis=1), total[diffuse_first].mean(axis=1)
+    d_sum, i_sum, mean = float(direct.sum()), float(indirect.sum()), float(total.mean())
+    ratio = i_sum / d_sum if d_sum > 0 else (float("inf") if i_sum > 0 else float("nan"))
+    return ratio, float(np.mean(indirect ** 2) / mean ** 2) if mean > 0 else float("nan")
 
 
 def _caustic_pilot(scene, accel, lights, n, seed):
@@ -273,7 +280,7 @@ def analyse(scene: Scene, pilot_rays: int = 4096, pilot_photons: int = 16384, se
     caustics_possible = shares["specular"] > 0 and has_light
     skipped = []
     nan = float("nan")
-    camera_escape = escape = indirect = caustic = footprint = nan
+    camera_escape = escape = indirect = noise = caustic = footprint = nan
     n_rays = n_photons = 0
     if mesh.n_triangles == 0:
         skipped.append("no pilots: the scene has no geometry")
@@ -292,7 +299,7 @@ def analyse(scene: Scene, pilot_rays: int = 4096, pilot_photons: int = 16384, se
             diffuse_mat = _material_shares_per_material(scene) >= 0.5
             first_diffuse = (hit.prim >= 0) & diffuse_mat[mat]
             if first_diffuse.any():
-                indirect = _indirect_pilot(scene, accel, lights, sampler, o, d, tmax, first_diffuse)
+                indirect, noise = _indirect_pilot(scene, accel, lights, sampler, o, d, tmax, first_diffuse)
             else:
                 skipped.append("no indirect-light pilot: the camera sees no diffuse surface")
         if not caustics_possible:
@@ -311,6 +318,7 @@ def analyse(scene: Scene, pilot_rays: int = 4096, pilot_photons: int = 16384, se
         diffuse_share=shares["diffuse"], glossy_share=shares["glossy"], specular_share=shares["specular"],
         transparent_share=shares["transparent"], caustics_possible=bool(caustics_possible), caustic_share=caustic,
         camera_escape_share=camera_escape, pixel_footprint=footprint, escape_share=escape, indirect_ratio=indirect,
+        indirect_noise=noise,
         pilot_rays=n_rays, pilot_photons=n_photons, skipped=tuple(skipped))
     figures["seconds"] = time.perf_counter() - t0
     return SceneAnalysis(summary=_summary(figures), **figures)
@@ -349,7 +357,8 @@ def _summary(f: dict) -> str:
         lines.append(f"{enclosure}: {_pct(f['escape_share'])} of probe rays escape "
                      f"({_pct(f['camera_escape_share'])} of camera rays see the background)")
     if np.isfinite(f["indirect_ratio"]):
-        lines.append(f"indirect / direct light at the first diffuse hits: {f['indirect_ratio']:.2f}")
+        lines.append(f"indirect / direct light at the first diffuse hits: {f['indirect_ratio']:.2f}; "
+                     f"its noise in a path sample, E[I^2] / E[L]^2: {f['indirect_noise']:.2f}")
     lines.append(f"geometry: {f['n_triangles']} triangles, radius {f['scene_radius']:.3g} m, a pixel {f['pixel_footprint']:.2g} m "
                  f"wide at the first hits; textures: {f['n_images']} images, {f['texture_texels']} texels; "
                  f"environment {f['environment_texels']} texels")

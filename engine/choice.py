@@ -1,26 +1,37 @@
 """The `auto` integrator's rule: from a scene's analysis (engine/analysis.py) to an integrator,
 its parameters and the reasons (issue 11).
 
-    no light, or controls only the path tracer honours      -> path
-    caustics (L S+ D) from small or point lights             -> photon (caustic map, final gathering)
-    mostly closed, diffuse, strong indirect light            -> icache (irradiance cache)
-    anything else (open scenes under a sky, glossy scenes)   -> path
+    no light, or controls only the path tracer honours         -> path
+    caustics (L S+ D) from small or point lights                -> photon (caustic map, final gathering)
+    mostly closed and diffuse, with strong indirect light:
+      a hot spot of indirect light, lit by finite lights only   -> photon (its map smooths the spot)
+      indirect light noisy for a path tracer at this resolution,
+      or a tiny light                                           -> icache (irradiance cache)
+    anything else (open scenes under a sky, glossy scenes,
+      a Cornell box at 64x64)                                   -> path
 
-Measured on the bench scenes at 64x64 (README "Automatic choice"): the path tracer wins where
-its noise falls fast - open scenes under a sky (hdri: 6-17x less error than the cache at 8 and
-30 s), mostly direct light - and loses where light arrives along paths it samples badly (the
-caustic of a small or point light: 15x the photon map's error at 8 s) or where diffuse
-interreflection dominates: with records refined between pass blocks and path-traced gathers
-the irradiance cache beat it on the interior (4.5x at 8 s), on the Cornell box, open at the
-front (28 % of probe rays escape; 1.2x at 8 s, 1.1x at 30 s in one run, but the bench run
-after it had the path tracer ahead, 1.35x and 2.8x: not settled), and on its hard variants (a
-light 5 mm from a wall: 5x at both budgets; a 1 cm light: 70x and 47x).
-For caustics, path tracing with a caustic map (`path_caustic`) beat `photon` at 30 s (caustic
-7.2e-3 against 1.0e-2, caustic_point 5.3e-3 against 5.7e-3, at a load of 9) but lost 4-7x at
-8 s on caustic_point (2.7e-2 - 4.3e-2 against 6.1e-3: a path tracer's early noise against
-final gathering's smooth estimate), so `photon` is the choice that holds at both budgets.
-Its 4 gather rays where indirect light is weak: the caustic scene's error fell 3.4x at 8 s
-and 1.4x at 30 s against 16 (bench/results/photon/notes.md, "tuned_photon_4_gather").
+Measured on the bench scenes at 64x64 (bench/results/auto/report.md), on a quiet machine:
+the path tracer wins where its noise falls fast - open scenes under a sky, mostly direct
+light - and, at 64x64, in the Cornell box (1.5x less error than the irradiance cache at 8 s,
+1.8x at 30 s): a 64x64 render takes thousands of samples in 30 s, and the cache's records
+(one per 7 pixels at that size) cost more than they save. At 256x256 the cache beats it 4.8x
+at 8 s. What decides is the noise the indirect light adds to a path sample, E[I^2] / E[L]^2
+at the first diffuse hits (analysis pilot): 1.2 in the Cornell box, 3.5 with its light 1 cm
+below the ceiling (the cache 1.6x better at 8 s), 11 in the sunlit interior (5x), 45 with a
+light 5 mm from a wall. A cache's advantage grows with the pixels it serves, so the noise is
+scaled by the image's linear size over 64 pixels before it is compared with NOISY_INDIRECT.
+Where the noise is a hot spot (HOT_SPOT) and every light is finite, photon mapping with final
+gathering beat the cache 2.4x at 8 s and 1.6x at 30 s: its gather rays read the spot from the
+map's density estimate instead of finding it by chance. Lit through a window by the sun and
+sky (the interior) the map starves (95 % of the sun's photons land outside), so distant
+lights and skies keep the cache.
+Caustics: path tracing with a caustic map (`path_caustic`) beat `photon` at 30 s but lost 4-7x
+at 8 s on caustic_point, so `photon` is the choice that holds at both budgets. Its gather rays:
+4 where indirect light is weak (the caustic scene's error fell 3.4x at 8 s and 1.4x at 30 s
+against 16), else 8: more camera samples per second, which the edges of lights in small images
+need (hard_phong at 8 s: 3.9e-4 against 5.5e-4 with 16). With strong indirect light in a small
+image (at most SMALL_IMAGE pixels) the global map's bias shows before its noise: 500k photons
+(hard_phong at 30 s: 2.0e-4 against 3.1e-4 with 200k).
 A setting the user changed from its default is never overridden; an integrator chosen by
 name is not analysed at all.
 """
@@ -37,6 +48,11 @@ DIFFUSE_SHARE = 0.9  # of the surface area (albedo-weighted): the irradiance cac
 INDIRECT_HEAVY = 0.5  # indirect / direct light at the first diffuse hits
 MOSTLY_CLOSED = 0.5  # share of escaping probe rays below which interreflection matters
 FEW_GATHER_RAYS, FEW_GATHER_BELOW = 4, 0.5  # photon: gather rays where indirect / direct is below
+GATHER_RAYS = 8  # photon: gather rays elsewhere
+NOISY_INDIRECT = 2.0  # E[I^2] / E[L]^2 x (image width / 64) from which a cache beats path tracing
+HOT_SPOT = 8.0  # E[I^2] / E[L]^2 from which photon mapping beats the irradiance cache
+SKY_LIGHTS = ("sun", "environment", "constant")  # light kinds whose photons a room's window wastes
+SMALL_IMAGE, SMALL_IMAGE_PHOTONS = 128 * 128, 500_000  # photon: global photons in small images
 
 
 @dataclass(frozen=True)
@@ -64,25 +80,45 @@ def choose(a: SceneAnalysis, settings, path_only: tuple = ()) -> Choice:
     if path_only:
         return Choice("path", {}, ("uses what only the path tracer honours: " + ", ".join(path_only),), ())
     small = sum(p for c, p in a.light_power if c in SMALL_LIGHTS)
+    pixels = s.width * s.height
     if a.caustics_possible and a.caustic_share >= CAUSTIC_SHARE and small >= SMALL_POWER:
         reasons = (f"caustics: {_pct(a.caustic_share)} of the light at diffuse surfaces comes through specular "
                    f"surfaces (L S+ D), {_pct(small)} of the power from small or point lights, which a path "
                    "tracer finds rarely or never",)
-        params = {}
-        if a.indirect_ratio < FEW_GATHER_BELOW:
-            params["gather_rays"] = (FEW_GATHER_RAYS, f"{FEW_GATHER_RAYS} gather rays: indirect light is "
-                                                      f"{_pct(a.indirect_ratio)} of direct")
+        params = {"gather_rays": _gather_rays(a)}
+        if a.indirect_ratio >= INDIRECT_HEAVY and pixels <= SMALL_IMAGE:
+            params["photons"] = (SMALL_IMAGE_PHOTONS, f"{SMALL_IMAGE_PHOTONS // 1000}k global photons: strong "
+                                 f"indirect light in a small image ({s.width}x{s.height}), where the map's bias "
+                                 "shows before its noise")
         return _chosen("photon", params, reasons, s)
     closed = a.escape_share < MOSTLY_CLOSED
     if closed and a.diffuse_share >= DIFFUSE_SHARE and a.indirect_ratio >= INDIRECT_HEAVY:
-        reasons = (f"{'enclosed' if a.enclosed else 'mostly closed'} ({_pct(a.escape_share)} of probe rays escape), "
-                   f"diffuse ({_pct(a.diffuse_share)} of the area), indirect light {a.indirect_ratio:.2f}x direct: "
-                   "irradiance cache",)
-        params = {}
-        if not a.caustics_possible or a.caustic_share == 0:
-            params["caustic_photons"] = (0, "no caustic map: " + _no_caustics(a))
-        return _chosen("icache", params, reasons, s)
+        where = (f"{'enclosed' if a.enclosed else 'mostly closed'} ({_pct(a.escape_share)} of probe rays escape), "
+                 f"diffuse ({_pct(a.diffuse_share)} of the area), indirect light {a.indirect_ratio:.2f}x direct")
+        sky = [k for k in a.light_kinds if k in SKY_LIGHTS]
+        if a.indirect_noise >= HOT_SPOT and not sky:
+            reasons = (f"{where}, in a hot spot (its noise in a path sample {a.indirect_noise:.1f} >= {HOT_SPOT:g}) "
+                       "lit by finite lights: photon mapping",)
+            return _chosen("photon", {"gather_rays": _gather_rays(a)}, reasons, s)
+        noise = a.indirect_noise * s.width / 64
+        tiny = sum(p for c, p in a.light_power if c == "tiny")
+        if noise >= NOISY_INDIRECT or tiny >= SMALL_POWER:
+            why = (f"{_pct(tiny)} of the power from tiny lights" if noise < NOISY_INDIRECT else
+                   f"its noise in a path sample {a.indirect_noise:.2f}, {noise:.1f} at {s.width} pixels wide "
+                   f"(>= {NOISY_INDIRECT:g})")
+            params = {}
+            if not a.caustics_possible or a.caustic_share == 0:
+                params["caustic_photons"] = (0, "no caustic map: " + _no_caustics(a))
+            return _chosen("icache", params, (f"{where}, {why}: irradiance cache",), s)
+        return Choice("path", {}, (f"{where}, but its noise in a path sample is low ({a.indirect_noise:.2f}, "
+                                   f"{noise:.1f} at {s.width} pixels wide, < {NOISY_INDIRECT:g}): path tracing",), ())
     return Choice("path", {}, (_why_path(a),), ())
+
+
+def _gather_rays(a: SceneAnalysis) -> tuple:
+    if a.indirect_ratio < FEW_GATHER_BELOW:
+        return FEW_GATHER_RAYS, f"{FEW_GATHER_RAYS} gather rays: indirect light is {_pct(a.indirect_ratio)} of direct"
+    return GATHER_RAYS, f"{GATHER_RAYS} gather rays: more camera samples, fewer rays each"
 
 
 def _no_caustics(a: SceneAnalysis) -> str:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ember.engine.integrators import NAMES, auto
-from ember.engine.scene import World
+from ember.engine.scene import LIGHT_RECT, LIGHT_SUN, Lights, World
 from ember.engine.session import RenderSession
 
 from test_analysis import closed_interior, exterior_under_environment, glass_caustic_under_point_light, glossy_scene, no_light
@@ -15,6 +15,26 @@ from test_analysis import closed_interior, exterior_under_environment, glass_cau
 
 def _auto(scene, **kw):
     return scene.replace(settings=scene.settings.replace(integrator="auto", **kw))
+
+
+def _wide(scene, width=384):
+    """The scene rendered `width` pixels wide (the rule weighs a cache's gain by the image size)."""
+    return scene.replace(settings=scene.settings.replace(width=width, height=width))
+
+
+def interior(width=384):
+    return _wide(closed_interior(), width)
+
+
+def hot_spot_room(sun=False):
+    """The closed room with its light 5 mm from a wall, tilted 60 degrees at it: the wall's hot
+    spot lights the room (indirect noise ~22); with a sun outside the closed room, the same."""
+    t = np.radians(60.0)
+    z, x = np.array([np.sin(t), 0.0, np.cos(t)]), np.array([np.cos(t), 0.0, -np.sin(t)])
+    rect = dict(kind=LIGHT_RECT, position=(-2 + 0.125 + 0.005, 0, 3.9), frame=np.array([x, np.cross(z, x), z]),
+                size=(0.25, 0.25), Le=(50.0,) * 3)
+    sun_light = dict(kind=LIGHT_SUN, frame=np.eye(3), sun_half_angle=0.005, Le=(1.0,) * 3)
+    return closed_interior().replace(lights=Lights.make([rect] + ([sun_light] if sun else [])))
 
 
 def test_auto_is_registered_last():
@@ -25,7 +45,11 @@ def test_auto_is_registered_last():
 @pytest.mark.parametrize("build, integrator, why", [
     (exterior_under_environment, "path", ("open (", "lit by environment", "mostly direct light")),
     (glass_caustic_under_point_light, "photon", ("caustics: ", "100 % of the power from small or point lights")),
-    (closed_interior, "icache", ("enclosed (0 % of probe rays escape), diffuse (100 % of the area)",)),
+    (interior, "icache", ("enclosed (0 % of probe rays escape), diffuse (100 % of the area)",
+                          "its noise in a path sample 0.52, 3.1 at 384 pixels wide (>= 2)")),
+    (lambda: interior(64), "path", ("but its noise in a path sample is low (0.52, 0.5 at 64 pixels wide, < 2)",)),
+    (hot_spot_room, "photon", ("in a hot spot (its noise in a path sample 2", "lit by finite lights: photon mapping")),
+    (lambda: hot_spot_room(sun=True), "icache", ("irradiance cache",)),
     (glossy_scene, "path", ("glossy/specular (100 % of the area)",)),
     (no_light, "path", ("no light: nothing to cache or map",)),
 ])
@@ -42,7 +66,7 @@ def test_parameters_from_the_analysis_and_the_users_win():
     assert "4 gather rays: indirect light is 0 % of direct" in r.lines
     mine = auto.resolve(_auto(glass_caustic_under_point_light(), gather_rays=9))
     assert mine.scene.settings.gather_rays == 9 and "gather rays: the user's 9" in mine.lines
-    r = auto.resolve(_auto(closed_interior()))
+    r = auto.resolve(_auto(interior()))
     assert r.scene.settings.caustic_photons == 0 and "no caustic map: no specular surface" in r.lines
 
 
@@ -53,7 +77,7 @@ def test_parameters_from_the_analysis_and_the_users_win():
     ("negative", "uses what only the path tracer honours: negative light"),
 ])
 def test_settings_that_only_the_path_tracer_honours_choose_it(override, reason):
-    scene = closed_interior()
+    scene = interior()
     if override == "negative":
         scene, override = scene.replace(lights=dataclasses.replace(scene.lights, Le=-scene.lights.Le)), {}
     r = auto.resolve(_auto(scene, **override))
@@ -94,8 +118,7 @@ def test_caustic_scene_builds_the_caustic_map_and_the_interior_none():
     session, stats = _session(_auto(glass_caustic_under_point_light(), photons=2000, caustic_photons=20000))
     photon = session.tracer.integrator
     assert session.scene.settings.integrator == "photon" and len(photon.caustic_map) > 0
-    session, stats = _session(_auto(closed_interior(), photons=2000, icache_rays=50, width=8, height=8,
-                                    border=(0, 0, 8, 8)))
+    session, stats = _session(_auto(interior(), photons=2000, icache_rays=50, border=(0, 0, 8, 8)))
     icache = session.tracer.integrator
     assert session.scene.settings.integrator == "icache" and icache.n_caustic_items == 0
     assert icache.caustic_map is None and icache.global_map is None and "photons" not in stats.stage_seconds
