@@ -44,7 +44,8 @@ def _found(lines):
         elif line.startswith(("open:", "enclosed:")):
             out.append(line.split(" of probe")[0].replace(":", ""))
         elif line.startswith("indirect / direct"):
-            out.append("indirect/direct " + line.rsplit(" ", 1)[1])
+            ratio, noise = line.split(": ", 1)[1].split(";")[0], line.rsplit(" ", 1)[1]
+            out.append(f"indirect/direct {ratio}, noise {noise}")
     return "; ".join(out)
 
 

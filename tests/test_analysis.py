@@ -4,7 +4,7 @@ scene and a scene without light."""
 import numpy as np
 
 from ember.engine.analysis import ENCLOSED, analyse
-from ember.engine.scene import (LIGHT_POINT, LIGHT_RECT, LOBE_DIELECTRIC, LOBE_MICROFACET, MAT_DIFFUSE, Lights,
+from ember.engine.scene import (LIGHT_POINT, LIGHT_RECT, LIGHT_SUN, LOBE_DIELECTRIC, LOBE_MICROFACET, MAT_DIFFUSE, Lights,
                                 Materials, Mesh, Scene, World)
 
 from core_scenes import box_quads, perspective, quads_mesh, settings, uv_sphere
@@ -47,6 +47,17 @@ def closed_interior(material=DIFFUSE):
                  settings())
 
 
+def hot_spot_room(sun=False):
+    """The closed room with its light 5 mm from a wall, tilted 60 degrees at it: the wall's hot
+    spot lights the room (indirect noise ~22); with a sun outside the closed room, the same."""
+    t = np.radians(60.0)
+    z, x = np.array([np.sin(t), 0.0, np.cos(t)]), np.array([np.cos(t), 0.0, -np.sin(t)])
+    rect = dict(kind=LIGHT_RECT, position=(-2 + 0.125 + 0.005, 0, 3.9), frame=np.array([x, np.cross(z, x), z]),
+                size=(0.25, 0.25), Le=(50.0,) * 3)
+    sun_light = dict(kind=LIGHT_SUN, frame=np.eye(3), sun_half_angle=0.005, Le=(1.0,) * 3)
+    return closed_interior().replace(lights=Lights.make([rect] + ([sun_light] if sun else [])))
+
+
 def glossy_scene():
     return closed_interior(dict(lobes=[dict(kind=LOBE_MICROFACET, roughness=0.5, color=(0.9,) * 3)]))
 
@@ -84,9 +95,19 @@ def test_closed_diffuse_interior_is_enclosed_with_strong_indirect_light():
     assert a.escape_share == 0.0 and a.camera_escape_share == 0.0 and a.enclosed
     assert a.count("small") == 1  # 0.5 m light in a room of radius 3.5 m
     assert a.diffuse_share == 1.0 and a.glossy_share == 0.0
-    # Albedo 0.8 all round: the indirect light is several times the direct.
-    assert a.indirect_ratio > 1.5
+    # Albedo 0.8 all round: the indirect light is several times the direct, and smooth: a
+    # path sample's indirect light varies little (E[I^2] / E[L]^2 is ~0.5; its floor, by
+    # Cauchy-Schwarz, (E[I] / E[L])^2 = (r / (1 + r))^2, is ~0.46).
+    r = a.indirect_ratio
+    assert r > 1.5 and (r / (1 + r)) ** 2 <= a.indirect_noise < 1.0
     assert "enclosed" in a.summary
+
+
+def test_a_hot_spot_makes_indirect_light_noisy():
+    # The same room with its light 5 mm from a wall and turned at it: most light reaches the
+    # room from the wall's hot spot, which few bounce rays find.
+    a = analyse(hot_spot_room(), pilot_rays=4096)
+    assert a.indirect_ratio > 5 and a.indirect_noise > 15
 
 
 def test_glossy_scene_is_glossy():

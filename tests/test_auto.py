@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 
 from ember.engine.integrators import NAMES, auto
-from ember.engine.scene import LIGHT_RECT, LIGHT_SUN, Lights, World
+from ember.engine.scene import World
 from ember.engine.session import RenderSession
 
-from test_analysis import closed_interior, exterior_under_environment, glass_caustic_under_point_light, glossy_scene, no_light
+from test_analysis import (closed_interior, exterior_under_environment, glass_caustic_under_point_light, glossy_scene,
+                           hot_spot_room, no_light)
 
 
 def _auto(scene, **kw):
@@ -24,17 +25,6 @@ def _wide(scene, width=384):
 
 def interior(width=384):
     return _wide(closed_interior(), width)
-
-
-def hot_spot_room(sun=False):
-    """The closed room with its light 5 mm from a wall, tilted 60 degrees at it: the wall's hot
-    spot lights the room (indirect noise ~22); with a sun outside the closed room, the same."""
-    t = np.radians(60.0)
-    z, x = np.array([np.sin(t), 0.0, np.cos(t)]), np.array([np.cos(t), 0.0, -np.sin(t)])
-    rect = dict(kind=LIGHT_RECT, position=(-2 + 0.125 + 0.005, 0, 3.9), frame=np.array([x, np.cross(z, x), z]),
-                size=(0.25, 0.25), Le=(50.0,) * 3)
-    sun_light = dict(kind=LIGHT_SUN, frame=np.eye(3), sun_half_angle=0.005, Le=(1.0,) * 3)
-    return closed_interior().replace(lights=Lights.make([rect] + ([sun_light] if sun else [])))
 
 
 def test_auto_is_registered_last():
