@@ -16,8 +16,7 @@ from __future__ import annotations
 
 import threading
 import time
-from dataclasses import dataclass
-
+from functools import cached_property
 import numpy as np
 
 from .scene import Mesh
@@ -42,17 +41,42 @@ def offset_origin(p: np.ndarray, ng: np.ndarray) -> np.ndarray:
     return out
 
 
-@dataclass
 class Hit:
     """Closest hits of N rays. prim (N,) int64, -1 on a miss; t (N,) float64 (inf on a miss);
     p (N,3) float64 hit point from barycentrics; b (N,3) barycentrics; ng (N,3) unit geometric
-    normal (facing as the triangle's winding)."""
+    normal (facing as the triangle's winding). p, b and ng are computed on first use, and
+    `take` keeps only some rays before that: a path tracer drops its escaped rays first and
+    so never rebuilds (then gathers) their points."""
 
-    prim: np.ndarray
-    t: np.ndarray
-    p: np.ndarray
-    b: np.ndarray
-    ng: np.ndarray
+    def __init__(self, prim, t, b1, b2, rows):
+        """b1, b2 (N,) Embree's barycentrics (u, v); rows: Accel.rows (T,12) of the full mesh."""
+        self.prim, self.t, self._b1, self._b2, self._rows = prim, t, b1, b2, rows
+        self._row = None
+
+    def take(self, keep: np.ndarray) -> "Hit":
+        """The hits of rays `keep` (K,)."""
+        return Hit(self.prim[keep], self.t[keep], self._b1[keep], self._b2[keep], self._rows)
+
+    def _triangle(self) -> np.ndarray:
+        """(N,12) rows v0, e1, e2, ng of the triangles hit (triangle 0 for a miss)."""
+        if self._row is None:
+            self._row = take(self._rows, np.where(self.prim < 0, 0, self.prim))
+        return self._row
+
+    @cached_property
+    def p(self) -> np.ndarray:
+        rows = self._triangle()
+        return rows[:, 0:3] + scale(rows[:, 3:6], self._b1) + scale(rows[:, 6:9], self._b2)
+
+    @cached_property
+    def b(self) -> np.ndarray:
+        b = np.empty((len(self.prim), 3))
+        b[:, 0], b[:, 1], b[:, 2] = 1.0 - self._b1 - self._b2, self._b1, self._b2
+        return b
+
+    @cached_property
+    def ng(self) -> np.ndarray:
+        return np.ascontiguousarray(self._triangle()[:, 9:12])
 
 
 class Accel:
@@ -179,8 +203,7 @@ class Accel:
         d (N,3) unit float64; skip_prim (N,) primitive each ray leaves (-1 none)."""
         n = len(o)
         if self._embree is None or n == 0:
-            z = np.zeros((n, 3))
-            return Hit(prim=np.full(n, -1, np.int64), t=np.full(n, np.inf), p=z, b=z.copy(), ng=z.copy())
+            return Hit(np.full(n, -1, np.int64), np.full(n, np.inf), np.zeros(n), np.zeros(n), np.zeros((1, 12)))
         o32 = np.ascontiguousarray(o, np.float32)
         d32 = np.ascontiguousarray(d, np.float32)
         tfar = np.full(n, 1e30, np.float32) if tmax is None else np.minimum(tmax, 1e30).astype(np.float32)
@@ -190,14 +213,8 @@ class Accel:
         b1, b2 = r["u"].astype(np.float64), r["v"].astype(np.float64)
         if skip_prim is not None:
             self._retrace_self_hits(o32, d32, tfar, skip_prim, prim, t, b1, b2)
-        miss = prim < 0
-        t[miss] = np.inf
-        safe = np.where(miss, 0, prim)
-        rows = take(self.rows, safe)
-        p = rows[:, 0:3] + scale(rows[:, 3:6], b1) + scale(rows[:, 6:9], b2)
-        b = np.empty((n, 3))
-        b[:, 0], b[:, 1], b[:, 2] = 1.0 - b1 - b2, b1, b2
-        return Hit(prim=prim, t=t, p=p, b=b, ng=np.ascontiguousarray(rows[:, 9:12]))
+        t[prim < 0] = np.inf
+        return Hit(prim, t, b1, b2, self.rows)
 
     def _retrace_self_hits(self, o32, d32, tfar, skip_prim, prim, t, b1, b2):
         """Rays that re-hit the triangle they leave are traced again from just through its

@@ -45,8 +45,7 @@ class RayVisibility:
         if not hidden:
             return self.accel.intersect(o32, d, tmax, skip)
         n = len(d)
-        out = Hit(prim=np.empty(n, np.int64), t=np.empty(n), p=np.empty((n, 3)), b=np.empty((n, 3)),
-                  ng=np.empty((n, 3)))
+        out = Hit(np.empty(n, np.int64), np.empty(n), np.empty(n), np.empty(n), self.accel.rows)
         groups = [(self.views[k], np.flatnonzero(kind == k)) for k in hidden]
         rest = np.flatnonzero(~np.isin(kind, hidden))
         if len(rest):
@@ -54,7 +53,7 @@ class RayVisibility:
         for accel, rows in groups:
             h = accel.intersect(o32[rows], d[rows], None if tmax is None else tmax[rows],
                                 None if skip is None else skip[rows])
-            for name in ("prim", "t", "p", "b", "ng"):
+            for name in ("prim", "t", "_b1", "_b2"):
                 getattr(out, name)[rows] = getattr(h, name)
         return out
 

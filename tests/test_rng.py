@@ -51,6 +51,23 @@ def test_random_pattern_is_bit_identical_to_the_original_hash():
                                  0.18651335209015885, 0.08323264925243468]
 
 
+def test_sobol_pattern_is_bit_identical_to_its_first_version():
+    """Values of the sobol pattern at engine/rng.py 135df2f: a faster sampler must give the
+    same bits (images stay what they were)."""
+    s = Sampler(3, np.array([0, 1, 7, 123456, 2 ** 40]), np.array([0, 1, 2, 3, 1000]))
+    assert s.get(7, None, 3).tolist() == [
+        [0.007405028911307454, 0.9722435381263494, 0.34444643603637815],
+        [0.5396089015994221, 0.6841827356256545, 0.38628662237897515],
+        [0.06817276054061949, 0.06660643056966364, 0.06647710036486387],
+        [0.78020412591286, 0.6039362289011478, 0.15751063078641891],
+        [0.43584780883975327, 0.05474567832425237, 0.06451415992341936]]
+    assert s.get(0).tolist() == [0.22639632457867265, 0.10963255539536476, 0.8298620842397213,
+                                 0.9109741665888578, 0.26252230000682175]
+    assert s.get(2, np.array([4, 0]), 4).tolist() == [
+        [0.4718870078213513, 0.5079844375140965, 0.6661957751493901, 0.39693783479742706],
+        [0.22128951223567128, 0.8072459315881133, 0.8151762357447296, 0.5873466767370701]]
+
+
 @pytest.mark.parametrize("pattern", PATTERNS)
 def test_dimensions_samples_and_neighbouring_pixels_are_independent(pattern):
     """Pairs (u_a, u_b) that differ in one counter fill the unit square uniformly (20x20 chi-square).

@@ -37,12 +37,16 @@ class LambertClosure:
     BSDF as `Closure` gives them (one diffuse lobe, chosen with probability 1), without the
     lobe table - the most common case, about half the cost of a bounce otherwise."""
 
-    def __init__(self, albedo: np.ndarray, ns: np.ndarray, ng: np.ndarray):
+    # Every direction it samples or evaluates as non-zero lies on ng's side (no transmission).
+    reflects_only = True
+
+    def __init__(self, albedo: np.ndarray, ns: np.ndarray, ng: np.ndarray, frame=None):
+        """frame: (t, b) = sampling.frame_from_z(ns) if the caller has it already."""
         self.ns, self.ng = ns, ng
         self.albedo = albedo
         self.reflectance = albedo
         self.has_smooth = max3(albedo) > 0
-        self.t, self.b = sampling.frame_from_z(ns)
+        self.t, self.b = sampling.frame_from_z(ns) if frame is None else frame
 
     def eval(self, wi: np.ndarray, rows: np.ndarray, visible=None):
         at = gatherer(rows, len(self.ns))
@@ -131,15 +135,16 @@ class _MixedClosure(Closure):
 
 
 def make_closure(scene: Scene, lambert_albedo: np.ndarray, mat, ns, ng, wo, prim, bary, no_caustics=None,
-                 min_alpha=None):
+                 min_alpha=None, frame=None):
     """LambertClosure when every point's material is plain Lambertian, else the general Closure
     (with LambertClosure's numbers at the plain points of a mixed batch: _MixedClosure).
     lambert_albedo: plain_lambert_albedo(scene.materials), computed once per render;
-    no_caustics, min_alpha: see Closure (nothing to drop or blur in a Lambertian)."""
+    no_caustics, min_alpha: see Closure (nothing to drop or blur in a Lambertian);
+    frame: (t, b) = sampling.frame_from_z(ns), if known."""
     albedo = take(lambert_albedo, mat)
     plain = ~np.isnan(albedo[:, 0])
     if plain.all():
-        return LambertClosure(albedo, ns, ng)
+        return LambertClosure(albedo, ns, ng, frame)
     if plain.any():
         return _MixedClosure(np.flatnonzero(plain), albedo, scene, mat, ns, ng, wo, prim, bary, no_caustics,
                              min_alpha)

@@ -33,7 +33,7 @@ from .. import passes as passes_mod
 from ..visibility import RayVisibility
 from .base import Integrator, Stage
 from .light_passes import LightTally
-from .surface import flat_normals, shading_frame, towards
+from .surface import flat_frame_rows, flat_frames, flat_normals, shading_frame, towards
 
 # Random-number groups (rng.Sampler): 0 the pixel filter, then per bounce _GROUPS groups:
 # light (lanes 0-1 the point on the light, 2 its choice) and BSDF (0-1 the direction, 2 the
@@ -59,6 +59,9 @@ class PathTracer:
         self.emissive_material = np.any(scene.materials.emission != 0, axis=1)  # negative emission too
         self.lambert_albedo = plain_lambert_albedo(scene.materials)
         self.flat_normal = flat_normals(scene.mesh)  # None unless every triangle is flat-shaded
+        self.flat_frames = flat_frames(scene.mesh, self.flat_normal, accel.ng)  # or None
+        # Barycentrics serve smooth normals and the general closure (textures) only.
+        self.needs_bary = self.flat_normal is None or bool(np.isnan(self.lambert_albedo).any())
         self.max_depth = scene.settings.max_depth
         self.rr_depth = scene.settings.rr_depth
         strategy = scene.settings.strategy
@@ -150,14 +153,16 @@ class PathTracer:
                 _accumulate(L, idx[r], c)
                 if tally:
                     tally.emitted(depth, idx[r], c, escaped=True)
+            o_prev = o64  # previous vertices, indexed through `keep` where needed
             keep = np.flatnonzero(~missed)
             if len(keep) == 0:
                 break
-            o_prev = o64  # previous vertices, indexed through `keep` where needed
-            idx, pdf_prev, no_mis, hit_t, prim = idx[keep], pdf_prev[keep], no_mis[keep], hit.t[keep], hit.prim[keep]
-            emission, dark = emission[keep], dark[keep]
-            beta, hit_p, d, bary, ng = (take(a, keep) for a in (beta, hit.p, d, hit.b, hit.ng))
-            bounces = bounces.take(keep)
+            if len(keep) < len(missed):  # drop the escaped rays before their hit points are rebuilt
+                idx, pdf_prev, no_mis, emission, dark = idx[keep], pdf_prev[keep], no_mis[keep], emission[keep], dark[keep]
+                beta, d, hit = take(beta, keep), take(d, keep), hit.take(keep)
+                bounces = bounces.take(keep)
+            hit_t, prim, hit_p, ng = hit.t, hit.prim, hit.p, hit.ng
+            bary = hit.b if self.needs_bary else None
             mat = mesh.material[prim]
             # Emissive triangles hit by the ray.
             emits = self.emissive_material[mat] & emission
@@ -184,14 +189,21 @@ class PathTracer:
                     break
                 idx, pdf_prev, no_mis, prim, mat = idx[keep], pdf_prev[keep], no_mis[keep], prim[keep], mat[keep]
                 dark = dark[keep]
-                beta, hit_p, d, bary, ng = (take(a, keep) for a in (beta, hit_p, d, bary, ng))
+                beta, hit_p, d, ng = (take(a, keep) for a in (beta, hit_p, d, ng))
+                bary = None if bary is None else take(bary, keep)
                 bounces = bounces.take(keep)
             # Shading frame, flipped to the side the ray came from (two-sided, like Cycles).
             wo = -d
-            ng_f, ns = shading_frame(mesh, self.flat_normal, prim, bary, ng, wo)
+            frame = None
+            if self.flat_frames is not None:
+                ng_f, ns, *frame = flat_frame_rows(self.flat_frames, prim, ng, wo)
+            else:
+                ng_f, ns = shading_frame(mesh, self.flat_normal, prim, bary, ng, wo)
             bsdf = make_closure(self.scene, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary,
-                                self._no_caustics(bounces), self._blur(bounces))
+                                self._no_caustics(bounces), self._blur(bounces), frame)
             ns = bsdf.ns  # may be perturbed (normal maps)
+            # A closure that only reflects puts every lit or sampled direction on ng_f's side.
+            reflects = getattr(bsdf, "reflects_only", False)
             if tally and depth == 0:
                 tally.first_hit(idx, bsdf)
             albedo = max3(bsdf.reflectance)
@@ -203,18 +215,19 @@ class PathTracer:
             active = np.flatnonzero((bsdf.has_smooth & ~bounces.last if self.any_transparent else bsdf.has_smooth) & ~dark)
             if len(active) and self.use_nee and not self.lights.empty:
                 at = gatherer(active, m)
-                u_light = sampler.get(base + _LIGHT, idx[active], 3)
+                u_light = sampler.get(base + _LIGHT, at(idx), 3)
                 ls = self.lights.sample(at(hit_p), u_light[:, 2], u_light[:, :2])
                 f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility)
                 cos_i = np.abs(dot(ls.wi, at(ns)))
-                pdf_b_mis = q[active] * pdf_b if self.mis else 0.0
+                pdf_b_mis = at(q) * pdf_b if self.mis else 0.0
                 w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_b_mis, 1e-300))
                 contrib = at(beta) * f * scale(ls.Le, np.divide(cos_i * w, ls.pdf, out=np.zeros(len(active)),
                                                                  where=ls.valid))
-                test = np.flatnonzero(np.any(contrib != 0, axis=1))  # negative lights subtract
+                test = np.flatnonzero((contrib[:, 0] != 0) | (contrib[:, 1] != 0) | (contrib[:, 2] != 0))  # negative lights subtract
                 if len(test):
                     rows = active[test]
-                    o_shadow = offset_origin(take(hit_p, rows), towards(take(ng_f, rows), take(ls.wi, test)))
+                    n_off = take(ng_f, rows) if reflects else towards(take(ng_f, rows), take(ls.wi, test))
+                    o_shadow = offset_origin(take(hit_p, rows), n_off)
                     blocked = self.visibility.occluded(o_shadow, take(ls.target, test), prim[rows], ls.target_prim[test])
                     lit = np.flatnonzero(~blocked)
                     c = self._clamp(take(contrib, test[lit]), bounces.total == 0, rows[lit])
@@ -240,7 +253,7 @@ class PathTracer:
             pdf_prev = (q * bs.pdf)[keep] if self.bsdf_hits else np.zeros(len(keep))
             no_mis = bs.delta[keep] | (not self.use_nee)
             o64 = take(hit_p, keep)
-            o32 = offset_origin(o64, towards(take(ng_f, keep), d))
+            o32 = offset_origin(o64, take(ng_f, keep) if reflects else towards(take(ng_f, keep), d))
             skip = prim[keep]
             tmax = None
         return np.ascontiguousarray(L.T)

@@ -34,3 +34,33 @@ def shading_frame(mesh: Mesh, flat_normal, prim, bary, ng, wo):
     if bad.any():
         ns[bad] = ng_f[bad]
     return ng_f, ns
+
+
+# Triangles up to which flat_frames tabulates (192 bytes each: 12 MB at this count).
+FLAT_FRAMES_MAX = 1 << 16
+
+
+def flat_frames(mesh: Mesh, flat_normal, ng: np.ndarray):
+    """Tables (ng_f, ns, t, b), each (2T,3): row 2 i + s holds triangle i's geometric and
+    shading normals and ns's tangent frame seen from its front (s = 0) or back (s = 1),
+    exactly as shading_frame and sampling.frame_from_z compute them per hit (every step is per
+    triangle, and flipping a side only flips signs, which is exact): a flat-shaded mesh's hits
+    then read rows instead of rebuilding them. None for smooth shading or more than
+    FLAT_FRAMES_MAX triangles (the tables' memory); ng (T,3) the unit geometric normals (Accel.ng)."""
+    from ..sampling import frame_from_z
+    if flat_normal is None or len(flat_normal) > FLAT_FRAMES_MAX:
+        return None
+    tables = np.empty((4, len(flat_normal), 2, 3))
+    for s, side in enumerate((1.0, -1.0)):
+        ng_f, ns = shading_frame(mesh, flat_normal, np.arange(len(flat_normal)), None, ng,
+                                 np.asarray(ng, np.float64) * side)
+        tables[:, :, s] = (ng_f, ns, *frame_from_z(ns))
+    return tuple(tables.reshape(4, -1, 3))
+
+
+def flat_frame_rows(tables, prim: np.ndarray, ng: np.ndarray, wo: np.ndarray):
+    """(ng_f, ns, t, b) (N,3) each from flat_frames' tables for hits on triangles prim (N,) with
+    geometric normals ng (N,3), seen from wo (N,3): the side shading_frame picks (dot(ng, wo)
+    >= 0 is the front)."""
+    row = 2 * prim + (dot(ng, wo) < 0).view(np.int8)
+    return tuple(take(table, row) for table in tables)

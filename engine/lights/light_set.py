@@ -93,6 +93,9 @@ class LightSet:
         self.tri_e1 = accel.e1[self.tri_prim]
         self.tri_e2 = accel.e2[self.tri_prim]
         self.tri_ng = accel.ng[self.tri_prim]
+        # One row per emissive triangle (v0, e1, e2, ng, area): light samples read one row, not five.
+        self.tri_rows = np.concatenate([self.tri_v0, self.tri_e1, self.tri_e2, self.tri_ng, self.tri_area[:, None]], axis=1)
+        self.tri_lit = max3(np.abs(self.tri_Le)) > 0 if len(self.tri_Le) else np.zeros(0, bool)
         self.light_of_prim = np.full(max(mesh.n_triangles, 1), -1, np.int64)
         self.light_of_prim[self.tri_prim] = self.n_analytic + np.arange(len(self.tri_prim))
         # World: a constant radiance (not sampled) or an environment map (sampled, last index).
@@ -231,6 +234,8 @@ class LightSet:
     def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray) -> LightSample:
         """One light sample per shading point p (N,3) float64; u_select (N,), u (N,2)."""
         n = len(p)
+        if self.tree is None and self.n_analytic == 0 and self.env is None:
+            return self._sample_triangles(p, u_select, u)
         index, pmf = self._choose(p, np.asarray(u_select, np.float64))
         out = {}  # field -> (N,...) array; every row belongs to exactly one kind of light
 
@@ -277,6 +282,22 @@ class LightSet:
         valid = (pdf > 0) & np.isfinite(pdf) & (max3(np.abs(Le)) > 0)  # negative lights count
         return LightSample(wi=wi, Le=Le, pdf=np.where(valid, pdf, 0.0), delta=delta, target=target,
                            target_prim=target_prim, finite=finite, valid=valid,
+                           visibility=None if self.nee_visibility is None else self.nee_visibility[index])
+
+    def _sample_triangles(self, p: np.ndarray, u_select, u: np.ndarray) -> LightSample:
+        """sample() when every light is an emissive triangle chosen by power (the common case):
+        the same numbers, with one gather of each triangle's row and no per-kind bookkeeping."""
+        n = len(p)
+        index = self.select.sample_index(np.asarray(u_select, np.float64))
+        pmf = self.select.pmf(index)
+        b = sampling.sample_uniform_triangle(u)
+        row = take(self.tri_rows, index)
+        y = row[:, 0:3] + scale(row[:, 3:6], b[:, 1]) + scale(row[:, 6:9], b[:, 2])
+        wi, pdf_dir, target = shapes.area_to_solid_angle(p, y, row[:, 9:12], row[:, 12], two_sided=True)
+        pdf = pmf * pdf_dir  # no delta lights among triangles
+        valid = (pdf > 0) & np.isfinite(pdf) & self.tri_lit[index]
+        return LightSample(wi=wi, Le=take(self.tri_Le, index), pdf=np.where(valid, pdf, 0.0), delta=np.zeros(n, bool),
+                           target=target, target_prim=self.tri_prim[index], finite=np.ones(n, bool), valid=valid,
                            visibility=None if self.nee_visibility is None else self.nee_visibility[index])
 
     # ---- emission found by rays (BSDF sampling or camera rays) -----------------------------
