@@ -26,12 +26,14 @@ _PIXEL_FILTER_BINS = 4096
 # ----------------------------------------------------------------------------------------------
 # Small helpers
 
-def _as_u(u, dims):
-    """u as a float64 array of shape (N,) (dims=1) or (N, dims), clamped into [0, 1)."""
+def _as_u(u, dims, in_unit=False):
+    """u as a float64 array of shape (N,) (dims=1) or (N, dims), clamped into [0, 1).
+    in_unit: u is known to lie in [0, 1) (a Sampler's numbers), so the clamp, a pass over u
+    that changes nothing, is left out."""
     u = np.asarray(u, dtype=np.float64)
     if dims > 1 and (u.ndim != 2 or u.shape[1] != dims):
         raise ValueError(f"u must have shape (N, {dims}), got {u.shape}")
-    return np.clip(u, 0.0, ONE_MINUS_EPSILON)
+    return u if in_unit else np.clip(u, 0.0, ONE_MINUS_EPSILON)
 
 
 def _safe_div(a, b):
@@ -152,12 +154,13 @@ def pdf_concentric_disk():
     return 1.0 / np.pi
 
 
-def sample_cosine_hemisphere(u):
+def sample_cosine_hemisphere(u, in_unit=False):
     """Directions (N, 3) around +z with pdf cos(theta) / pi, from u (N, 2) (Malley's method).
 
     u = (0, 0) maps to the rim of the disk, i.e. the horizon, where the pdf is 0.
+    in_unit: u is known to lie in [0, 1) (see _as_u).
     """
-    r, phi = _concentric_polar(_as_u(u, 2))
+    r, phi = _concentric_polar(_as_u(u, 2, in_unit))
     out = np.empty((len(r), 3))
     out[:, 0], out[:, 1] = r * np.cos(phi), r * np.sin(phi)
     out[:, 2] = np.sqrt(np.maximum(0.0, 1.0 - r * r))  # x^2 + y^2 = r^2
@@ -212,14 +215,15 @@ def pdf_sphere_cone(one_minus_cos_max):
 # ----------------------------------------------------------------------------------------------
 # Planar shapes (pdfs per unit area)
 
-def sample_uniform_triangle(u):
+def sample_uniform_triangle(u, in_unit=False):
     """Barycentrics (N, 3) uniform by area from u (N, 2).
 
     Heitz 2019, "A Low-Distortion Map Between Triangle and Square" (as pbrt-v4
     SampleUniformTriangle): shift the smaller coordinate by half the larger one. The point is
     b0 * p0 + b1 * p1 + b2 * p2; its area pdf is pdf_uniform_triangle(area).
+    in_unit: u is known to lie in [0, 1) (see _as_u).
     """
-    u = _as_u(u, 2)
+    u = _as_u(u, 2, in_unit)
     u0, u1 = u[:, 0], u[:, 1]
     first_smaller = u0 < u1
     b0 = np.where(first_smaller, 0.5 * u0, u0 - 0.5 * u1)

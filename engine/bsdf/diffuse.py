@@ -15,6 +15,6 @@ def pdf(cos_i: np.ndarray) -> np.ndarray:
     return sampling.pdf_cosine_hemisphere(cos_i)
 
 
-def sample(u: np.ndarray) -> np.ndarray:
-    """Local directions (N,3) around +z."""
-    return sampling.sample_cosine_hemisphere(u)
+def sample(u: np.ndarray, in_unit=False) -> np.ndarray:
+    """Local directions (N,3) around +z; in_unit: u is known to lie in [0, 1) (a Sampler's)."""
+    return sampling.sample_cosine_hemisphere(u, in_unit)

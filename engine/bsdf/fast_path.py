@@ -65,13 +65,14 @@ class LambertClosure:
         out[:, 0] = self.albedo
         return out
 
-    def sample(self, u: np.ndarray, u_lobe: np.ndarray) -> BSDFSample:
-        return self.sample_at(None, u)
+    def sample(self, u: np.ndarray, u_lobe: np.ndarray, in_unit=False) -> BSDFSample:
+        return self.sample_at(None, u, in_unit)
 
-    def sample_at(self, rows, u: np.ndarray) -> BSDFSample:
-        """Samples at points rows (K,) (repeats allowed; None: all), uniforms u (K,2)."""
+    def sample_at(self, rows, u: np.ndarray, in_unit=False) -> BSDFSample:
+        """Samples at points rows (K,) (repeats allowed; None: all), uniforms u (K,2) (in_unit:
+        known to lie in [0, 1), a Sampler's numbers: not clamped again)."""
         at = (lambda a: a) if rows is None else gatherer(rows, len(self.ns))  # noqa: E731
-        local = diffuse.sample(u)
+        local = diffuse.sample(u, in_unit)
         wi = sampling.to_world(local, at(self.t), at(self.b), at(self.ns))
         ok = (dot(wi, at(self.ng)) > 0) & (local[:, 2] > 0) & (self.has_smooth if rows is None else self.has_smooth[rows])
         # f cos / pdf = albedo for cosine-weighted sampling of a Lambertian lobe.

@@ -231,11 +231,12 @@ class LightSet:
         return index, pmf
 
     # ---- next-event estimation ------------------------------------------------------------
-    def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray) -> LightSample:
-        """One light sample per shading point p (N,3) float64; u_select (N,), u (N,2)."""
+    def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray, in_unit=False) -> LightSample:
+        """One light sample per shading point p (N,3) float64; u_select (N,), u (N,2) (in_unit:
+        known to lie in [0, 1), a Sampler's numbers: not clamped again)."""
         n = len(p)
         if self.tree is None and self.n_analytic == 0 and self.env is None:
-            return self._sample_triangles(p, u_select, u)
+            return self._sample_triangles(p, u_select, u, in_unit)
         index, pmf = self._choose(p, np.asarray(u_select, np.float64))
         out = {}  # field -> (N,...) array; every row belongs to exactly one kind of light
 
@@ -284,13 +285,13 @@ class LightSet:
                            target_prim=target_prim, finite=finite, valid=valid,
                            visibility=None if self.nee_visibility is None else self.nee_visibility[index])
 
-    def _sample_triangles(self, p: np.ndarray, u_select, u: np.ndarray) -> LightSample:
+    def _sample_triangles(self, p: np.ndarray, u_select, u: np.ndarray, in_unit: bool) -> LightSample:
         """sample() when every light is an emissive triangle chosen by power (the common case):
         the same numbers, with one gather of each triangle's row and no per-kind bookkeeping."""
         n = len(p)
         index = self.select.sample_index(np.asarray(u_select, np.float64))
         pmf = self.select.pmf(index)
-        b = sampling.sample_uniform_triangle(u)
+        b = sampling.sample_uniform_triangle(u, in_unit)
         row = take(self.tri_rows, index)
         y = row[:, 0:3] + scale(row[:, 3:6], b[:, 1]) + scale(row[:, 6:9], b[:, 2])
         wi, pdf_dir, target = shapes.area_to_solid_angle(p, y, row[:, 9:12], row[:, 12], two_sided=True)
