@@ -17,6 +17,7 @@ from __future__ import annotations
 import threading
 import time
 from functools import cached_property
+
 import numpy as np
 
 from .scene import Mesh

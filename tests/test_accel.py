@@ -218,3 +218,19 @@ def test_big_objects_get_scenes_of_their_own_kept_when_others_move(monkeypatch):
     assert accel_mod.BUILT[0] - built == 1  # the moved small object's block only
     same(again, Accel(moved, split=True))
     same(again, Accel(moved))
+
+
+def test_hits_kept_before_their_points_are_built_equal_the_kept_rows():
+    """Hit.take (the path tracer drops escaped rays first) gives bit for bit the rows of the
+    full-width points, barycentrics and normals, which are rebuilt per row from the triangle."""
+    rng = np.random.default_rng(8)
+    tris = rng.uniform(-1, 1, size=(200, 3, 3)) + 1e4
+    o = (rng.uniform(-0.5, 0.5, size=(4000, 3)) + 1e4).astype(np.float32)  # among the triangles
+    hit = Accel(_soup(tris)).intersect(o, _random_dirs(rng, 4000), None, np.full(4000, -1))
+    keep = np.flatnonzero(hit.prim >= 0)
+    assert 0.2 * len(o) < len(keep) < len(o)  # misses to drop, hits to keep
+    kept = hit.take(keep)
+    assert np.array_equal(kept.prim, hit.prim[keep]) and np.array_equal(kept.t, hit.t[keep])
+    for name in ("p", "b", "ng"):
+        assert np.array_equal(getattr(kept, name), getattr(hit, name)[keep]), name
+    assert np.all(np.isinf(hit.t[hit.prim < 0]))

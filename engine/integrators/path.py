@@ -158,7 +158,8 @@ class PathTracer:
             if len(keep) == 0:
                 break
             if len(keep) < len(missed):  # drop the escaped rays before their hit points are rebuilt
-                idx, pdf_prev, no_mis, emission, dark = idx[keep], pdf_prev[keep], no_mis[keep], emission[keep], dark[keep]
+                idx, pdf_prev, no_mis = idx[keep], pdf_prev[keep], no_mis[keep]
+                emission, dark = emission[keep], dark[keep]
                 beta, d, hit = take(beta, keep), take(d, keep), hit.take(keep)
                 bounces = bounces.take(keep)
             hit_t, prim, hit_p, ng = hit.t, hit.prim, hit.p, hit.ng

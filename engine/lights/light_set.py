@@ -94,7 +94,8 @@ class LightSet:
         self.tri_e2 = accel.e2[self.tri_prim]
         self.tri_ng = accel.ng[self.tri_prim]
         # One row per emissive triangle (v0, e1, e2, ng, area): light samples read one row, not five.
-        self.tri_rows = np.concatenate([self.tri_v0, self.tri_e1, self.tri_e2, self.tri_ng, self.tri_area[:, None]], axis=1)
+        self.tri_rows = np.concatenate([self.tri_v0, self.tri_e1, self.tri_e2, self.tri_ng, self.tri_area[:, None]],
+                                       axis=1)
         self.tri_lit = max3(np.abs(self.tri_Le)) > 0 if len(self.tri_Le) else np.zeros(0, bool)
         self.light_of_prim = np.full(max(mesh.n_triangles, 1), -1, np.int64)
         self.light_of_prim[self.tri_prim] = self.n_analytic + np.arange(len(self.tri_prim))
