@@ -204,8 +204,10 @@ class Sampler:
     `get(dim, rows=None, k=1)` returns float64 in [0, 1), shape (len(rows),) for k = 1 or
     (len(rows), k), for the paths `rows` (all when None). Dimensions are small integers the
     integrator assigns (e.g. 8 * bounce + purpose); a k-vector (k <= 4) is group `dim`, lanes
-    dim*4 .. dim*4+k-1. With pattern "sobol" the lanes of one group are jointly stratified over
-    a pixel's samples (put quantities sampled together in one group); "random" is i.i.d.
+    dim*4 .. dim*4+k-1; `get(dim, rows, lanes=(0, 1, 3))` computes and returns only those
+    lanes (a caller that does not use lane 2), with the same values. With pattern "sobol" the
+    lanes of one group are jointly stratified over a pixel's samples (put quantities sampled
+    together in one group); "random" is i.i.d.
     """
 
     def __init__(self, seed: int, pixel: np.ndarray, sample: np.ndarray, pattern: str = "sobol",
@@ -227,19 +229,26 @@ class Sampler:
                 self.index_r = _reverse_bits(index)  # bit-reversed sample index (a copy)
                 self._scratch = {}  # see _work: one Sampler serves one thread
 
-    def get(self, dim: int, rows=None, k: int = 1) -> np.ndarray:
+    def get(self, dim: int, rows=None, k: int = 1, lanes=None) -> np.ndarray:
+        """lanes: the lanes of the group to return, increasing (e.g. (0, 1, 3)), instead of
+        the first k; the result is then (len(rows), len(lanes)). Only those are computed."""
         if not 1 <= k <= 4:
             raise ValueError(f"k must be 1..4 (got {k})")
+        one = lanes is None and k == 1
+        lanes = tuple(range(k)) if lanes is None else tuple(lanes)
+        if not lanes or list(lanes) != sorted(set(lanes)) or not 0 <= lanes[0] <= lanes[-1] <= 3:
+            raise ValueError(f"lanes must be increasing lane numbers 0..3 (got {lanes})")
         if self.pattern == "sobol":
-            return self._get_sobol(dim, rows, k)
+            u = self._get_sobol(dim, rows, lanes)
+            return u[:, 0] if one else u
         key = self.key if rows is None else self.key[rows]
-        u = np.empty((len(key), k))
+        u = np.empty((len(key), len(lanes)))
         with np.errstate(over="ignore"):
-            for lane in range(k):  # k <= 4 columns, each a contiguous pass over the keys
+            for j, lane in enumerate(lanes):  # at most 4 columns, each a contiguous pass over the keys
                 x = _mix(key + np.uint64(4 * dim + lane) * _K_DIM)
-                u[:, lane] = (x >> np.uint64(11)).astype(np.float64)
+                u[:, j] = (x >> np.uint64(11)).astype(np.float64)
         u *= 1.0 / 9007199254740992.0
-        return u[:, 0] if k == 1 else u
+        return u[:, 0] if one else u
 
     def _work(self, name: str, dtype, size: int) -> np.ndarray:
         """Scratch array `name` of at least `size` elements, kept between calls: NumPy's large
@@ -250,10 +259,11 @@ class Sampler:
             a = self._scratch[name] = np.empty(size, dtype)
         return a[:size]
 
-    def _get_sobol(self, dim: int, rows, k: int) -> np.ndarray:
+    def _get_sobol(self, dim: int, rows, lanes: tuple) -> np.ndarray:
+        """(N, len(lanes)) uniforms of lanes `lanes` of group dim."""
         key = self.key if rows is None else self.key[rows]
         n = len(key)
-        kk = 4 if k == 3 else k  # lanes computed (k = 3 computes 4 and drops one)
+        kk = len(lanes)
         work = self._work
         r = work("index", np.uint32, n)
         r[:] = self.index_r if rows is None else self.index_r[rows]
@@ -266,21 +276,26 @@ class Sampler:
             t = work("t32", np.uint32, n * kk)
             # Lane keys: a 32-bit hash of (low half of h, lane), laid out (n, kk) like the
             # output, so that the scramble runs over one flat array.
-            for j in range(kk):  # one strided pass per lane (a broadcast (n, kk) op is slower)
-                np.bitwise_xor(shuffle_key, _LANES[j], out=lane_key.reshape(n, kk)[:, j])
+            for j, lane in enumerate(lanes):  # one strided pass per lane (a broadcast (n, kk) op is slower)
+                np.bitwise_xor(shuffle_key, _LANES[lane], out=lane_key.reshape(n, kk)[:, j])
             _hash32_(lane_key, t)
             shuffle_key[:] = np.right_shift(h, np.uint64(32), out=t64[:n])  # the high 32 bits
             _owen_reversed_(r, shuffle_key, t[:n])  # shuffled sample index, bit-reversed
-            # Lane 0 alone (van der Corput): its reversed coordinate is the shuffled index itself.
-            y = _reverse_bits_(r, t[:n]) if kk == 1 else _sobol_of_reversed_index(r, kk, work).ravel()
+            if lanes == (0,):  # van der Corput: its reversed coordinate is the shuffled index itself
+                y = _reverse_bits_(r, t[:n])
+            else:
+                points = _sobol_of_reversed_index(r, lanes[-1] + 1, work)
+                if points.flags.c_contiguous and lanes == tuple(range(points.shape[1])):
+                    y = points.ravel()  # all lanes of whole pairs: already one flat array
+                else:  # the lanes asked for, side by side (the scrambles below run on these only)
+                    y = work("lanes", np.uint32, n * kk)
+                    for j, lane in enumerate(lanes):
+                        y.reshape(n, kk)[:, j] = points[:, lane]
             _owen_reversed_(y, lane_key, t)
             _reverse_bits_(y, t)
         u = y.astype(np.float64)
         u *= 2.0 ** -32  # y <= 2^32 - 1, so u < 1 exactly
-        if k == 1:
-            return u
-        u = u.reshape(n, kk)
-        return u if kk == k else np.ascontiguousarray(u[:, :k])
+        return u.reshape(n, kk)
 
 
 def animated_seed(seed: int, frame: int, subframe: float = 0.0) -> int:

@@ -108,6 +108,12 @@ def test_rows_batching_and_k_do_not_change_values(pattern):
         assert np.array_equal(full if k == 1 else full[:, 0], s.get(4, None, 1))
         if k > 1:
             assert np.array_equal(full[:, :2], s.get(4, None, 2)[:, :k])
+    full = s.get(4, None, 4)
+    for lanes in ((0, 1, 3), (1,), (2, 3), (0, 2), (3,), (0, 1, 2, 3)):  # only these lanes, the same values
+        assert np.array_equal(s.get(4, None, lanes=lanes), full[:, list(lanes)]), lanes
+        assert np.array_equal(s.get(4, rows, lanes=lanes), full[rows][:, list(lanes)]), lanes
+    with pytest.raises(ValueError):
+        s.get(4, None, lanes=(3, 1))
 
 
 # ----------------------------------------------------------------------------------------------

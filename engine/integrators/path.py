@@ -241,12 +241,15 @@ class PathTracer:
                         f_cls = bsdf.eval_by_class(take(ls.wi, test[lit]), rows[lit]) if depth == 0 else None
                         tally.light_sample(depth, idx[rows[lit]], c, f_cls)
             # BSDF sampling continues the path; Russian roulette with survival q.
-            u_bsdf = sampler.get(base + _BSDF, idx, 4)
-            # A Sampler's numbers lie in [0, 1): the Lambertian closure need not clamp them.
-            bs = bsdf.sample(u_bsdf[:, :2], u_bsdf[:, 2], **({"in_unit": True} if reflects else {}))
+            if reflects:  # one lobe: no lane 2 to draw; a Sampler's numbers need no clamp
+                u_bsdf = sampler.get(base + _BSDF, idx, lanes=(0, 1, 3))
+                bs, u_rr = bsdf.sample(u_bsdf[:, :2], None, in_unit=True), u_bsdf[:, 2]
+            else:
+                u_bsdf = sampler.get(base + _BSDF, idx, 4)
+                bs, u_rr = bsdf.sample(u_bsdf[:, :2], u_bsdf[:, 2]), u_bsdf[:, 3]
             if tally and depth == 0:
                 tally.first_bounce(idx, bsdf, bs)
-            survive = bs.valid & (u_bsdf[:, 3] < q)
+            survive = bs.valid & (u_rr < q)
             if self.any_transparent:  # a path at its last vertex goes on only through transparency
                 survive &= ~bounces.last | (bs.label == LABEL_TRANSPARENT)
             beta = beta * scale(bs.weight, np.divide(1.0, q, out=np.zeros(m), where=survive))
