@@ -91,6 +91,10 @@ def _ragged(starts: np.ndarray, counts: np.ndarray):
 
 
 class Closure:
+    # Whether every direction it samples or evaluates as non-zero lies on ng's side: not in
+    # general (transmission); LambertClosure says True, which spares side tests.
+    reflects_only = False
+
     def __init__(self, scene: Scene, mat: np.ndarray, ns: np.ndarray, ng: np.ndarray, wo: np.ndarray,
                  prim: np.ndarray, bary: np.ndarray, no_caustics=None, min_alpha=None):
         """mat (N,) material per point; ns, ng (N,3) unit normals on wo's side; wo (N,3) toward

@@ -204,7 +204,7 @@ class PathTracer:
                                 self._no_caustics(bounces), self._blur(bounces), frame)
             ns = bsdf.ns  # may be perturbed (normal maps)
             # A closure that only reflects puts every lit or sampled direction on ng_f's side.
-            reflects = getattr(bsdf, "reflects_only", False)
+            reflects = bsdf.reflects_only
             if tally and depth == 0:
                 tally.first_hit(idx, bsdf)
             albedo = max3(bsdf.reflectance)

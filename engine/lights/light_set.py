@@ -267,9 +267,7 @@ class LightSet:
         if is_tri.any():
             rows, r = rows_of(is_tri)
             t = index[r] - self.n_analytic
-            b = sampling.sample_uniform_triangle(u[r])
-            y = take(self.tri_v0, t) + scale(take(self.tri_e1, t), b[:, 1]) + scale(take(self.tri_e2, t), b[:, 2])
-            wi, pdf_dir, target = shapes.area_to_solid_angle(p[r], y, take(self.tri_ng, t), self.tri_area[t], two_sided=True)
+            wi, pdf_dir, target = self._triangle_sample(p[r], t, u[r])
             put(rows, wi=wi, Le=take(self.tri_Le, t), pdf_dir=pdf_dir, target=target, finite=np.ones(len(rows), bool))
             target_prim[r] = self.tri_prim[t]
         for kind in self.kinds_present:
@@ -292,15 +290,20 @@ class LightSet:
         n = len(p)
         index = self.select.sample_index(np.asarray(u_select, np.float64))
         pmf = self.select.pmf(index)
-        b = sampling.sample_uniform_triangle(u, in_unit)
-        row = take(self.tri_rows, index)
-        y = row[:, 0:3] + scale(row[:, 3:6], b[:, 1]) + scale(row[:, 6:9], b[:, 2])
-        wi, pdf_dir, target = shapes.area_to_solid_angle(p, y, row[:, 9:12], row[:, 12], two_sided=True)
+        wi, pdf_dir, target = self._triangle_sample(p, index, u, in_unit)
         pdf = pmf * pdf_dir  # no delta lights among triangles
         valid = (pdf > 0) & np.isfinite(pdf) & self.tri_lit[index]
         return LightSample(wi=wi, Le=take(self.tri_Le, index), pdf=np.where(valid, pdf, 0.0), delta=np.zeros(n, bool),
                            target=target, target_prim=self.tri_prim[index], finite=np.ones(n, bool), valid=valid,
                            visibility=None if self.nee_visibility is None else self.nee_visibility[index])
+
+    def _triangle_sample(self, p: np.ndarray, t: np.ndarray, u: np.ndarray, in_unit=False):
+        """(wi, solid-angle pdf, target) of a uniform point on emissive triangles t (N,) seen
+        from p (N,3): one gather of each triangle's row."""
+        b = sampling.sample_uniform_triangle(u, in_unit)
+        row = take(self.tri_rows, t)
+        y = row[:, 0:3] + scale(row[:, 3:6], b[:, 1]) + scale(row[:, 6:9], b[:, 2])
+        return shapes.area_to_solid_angle(p, y, row[:, 9:12], row[:, 12], two_sided=True)
 
     # ---- emission found by rays (BSDF sampling or camera rays) -----------------------------
     def pdf_triangle_hit(self, prim: np.ndarray, p_prev: np.ndarray, t: np.ndarray, cos_light: np.ndarray):
