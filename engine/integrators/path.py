@@ -42,6 +42,11 @@ from .surface import flat_frame_rows, flat_frames, flat_normals, shading_frame, 
 _GROUPS = 2
 _LIGHT, _BSDF = 0, 1
 
+# Path regeneration (PathTracer.render): an item's camera paths run in a pool of REFILL_POOL x
+# the batch size live paths, topped up with the item's next camera paths whenever fewer than
+# REFILL_BELOW x the pool remain, so that most bounces run wide (bench/cpu_ab.py).
+REFILL_POOL = 0.5
+REFILL_BELOW = 0.5
 
 
 def _accumulate(L: np.ndarray, rows: np.ndarray, c: np.ndarray) -> None:
@@ -95,11 +100,15 @@ class PathTracer:
         tally: a LightTally that files the radiance into light passes, or None."""
         s = self.scene
         o64, d, tmax = camera_mod.camera_rays(s.camera, s.settings, px, py, sampler)
-        return self.trace(sampler, o64, o64.astype(np.float32), d, tmax, np.full(len(px), -1, np.int64), stop,
-                          tally=tally)
+        o32, skip = o64.astype(np.float32), np.full(len(px), -1, np.int64)
+        pool = max(int(REFILL_POOL * s.settings.batch_size), 1)
+        if tally is None and len(px) > pool:
+            refill = _Refill(o64, o32, d, tmax, skip, pool)
+            return self.trace(sampler, *refill.take(pool)[1:], stop, refill=refill)
+        return self.trace(sampler, o64, o32, d, tmax, skip, stop, tally=tally)
 
     def trace(self, sampler, o64, o32, d, tmax, skip, stop=None, first_emission=True,
-              max_depth=None, t_first=None, tally=None, caustic_ends=None) -> np.ndarray:
+              max_depth=None, t_first=None, tally=None, caustic_ends=None, refill=None) -> np.ndarray:
         """Radiance (N,3) arriving along rays from o64 (float64 points; o32 their offset float32
         origins, skip the primitive each leaves or -1) in directions d; tmax (N,) or None.
         Random groups from 1 (group 0 is the caller's). first_emission False leaves out the
@@ -108,9 +117,15 @@ class PathTracer:
         receives the first hit's distance (inf where the ray escaped); tally: light passes
         (render, camera rays only); caustic_ends (M,) bool per material, or None: light that a
         path finds before it reaches one of these materials is left out (a gather path from a
-        point whose caustics come from a caustic map: that map holds exactly those paths)."""
+        point whose caustics come from a caustic map: that map holds exactly those paths).
+
+        refill: a _Refill (path regeneration) whose first rays are the ones given: the live
+        paths are topped up with its next rays whenever fewer than REFILL_BELOW x its pool
+        remain, and the result has a row for each of its rays. Paths then sit at different
+        bounces (depth per path), yet each path draws the same numbers and sums the same
+        terms in the same order, so the result is the same bit for bit."""
         n = len(d)
-        L = np.zeros((3, n))  # channel-major: see _accumulate
+        L = np.zeros((3, n if refill is None else refill.n))  # channel-major: see _accumulate
         idx = np.arange(n)  # which pixel sample each live path belongs to
         beta = np.ones((n, 3))
         pdf_prev = np.zeros(n)  # q * p_b of the bounce that produced the ray
@@ -121,17 +136,33 @@ class PathTracer:
         max_depth = self.max_depth if max_depth is None else max_depth
         bounces = _Bounces.start(n, max_depth, self.any_transparent, self.counted, self.ray_kinds,
                                  self.filter_glossy > 0)
-        for depth in range(max_depth + self.limits[LABEL_TRANSPARENT] + 1):
+        limit = max_depth + self.limits[LABEL_TRANSPARENT] + 1  # rays a path traces at most
+        # Bounces so far: one int for all paths, or one per path with regeneration.
+        depth = 0 if refill is None else np.zeros(len(idx), np.int64)
+        if refill is not None:
+            bounces = bounces.per_path(len(idx))
+        while True:
             if stop is not None and stop.is_set():
                 raise Cancelled()
+            pending = refill is not None and refill.left > 0
+            if pending and len(idx) < REFILL_BELOW * refill.pool:
+                k = min(refill.pool - len(idx), refill.left)
+                new = _Bounces.start(k, max_depth, self.any_transparent, self.counted, self.ray_kinds,
+                                     self.filter_glossy > 0).per_path(k)
+                idx, o64, o32, d, tmax, skip = (np.concatenate([a, b]) for a, b in zip((idx, o64, o32, d, tmax, skip),
+                                                                                          refill.take(k)))
+                depth, dark = np.concatenate([depth, np.zeros(k, np.int64)]), np.concatenate([dark, np.zeros(k, bool)])
+                beta, pdf_prev = np.concatenate([beta, np.ones((k, 3))]), np.concatenate([pdf_prev, np.zeros(k)])
+                no_mis, bounces = np.concatenate([no_mis, np.ones(k, bool)]), bounces.join(new)
+                pending = refill.left > 0
             if len(idx) == 0:
                 break
-            base = 1 + _GROUPS * depth
+            base = 1 + _GROUPS * depth  # random groups of this bounce (per path with regeneration)
             kind = bounces.ray  # None when no visibility or caustics toggle needs it
             hit = self.visibility.intersect(o32, d, tmax, skip, kind)
-            if depth == 0 and t_first is not None:
+            if t_first is not None and depth == 0:
                 t_first[:] = np.where(hit.prim >= 0, hit.t, np.inf)
-            camera_ray = kind == RAY_CAMERA if kind is not None else np.full(len(idx), depth == 0)
+            camera_ray = kind == RAY_CAMERA if kind is not None else np.broadcast_to(depth == 0, len(idx))
             emission = (first_emission or depth > 0) & ~dark  # (n,) bool
             # Emission found by this ray is "direct" for clamping after at most one bounce.
             direct = bounces.total <= 1 if self.clamp is not None else None
@@ -155,11 +186,11 @@ class PathTracer:
                     tally.emitted(depth, idx[r], c, escaped=True)
             o_prev = o64  # previous vertices, indexed through `keep` where needed
             keep = np.flatnonzero(~missed)
-            if len(keep) == 0:
+            if len(keep) == 0 and not pending:
                 break
             if len(keep) < len(missed):  # drop the escaped rays before their hit points are rebuilt
                 idx, pdf_prev, no_mis = idx[keep], pdf_prev[keep], no_mis[keep]
-                emission, dark = emission[keep], dark[keep]
+                emission, dark, depth, base = emission[keep], dark[keep], _rows(depth, keep), _rows(base, keep)
                 beta, d, hit = take(beta, keep), take(d, keep), hit.take(keep)
                 bounces = bounces.take(keep)
             hit_t, prim, hit_p, ng = hit.t, hit.prim, hit.p, hit.ng
@@ -186,10 +217,10 @@ class PathTracer:
                 ends |= self.visibility.holdout[prim] & (bounces.ray == RAY_CAMERA)
             if ends.any():
                 keep = np.flatnonzero(~ends)
-                if len(keep) == 0:
+                if len(keep) == 0 and not pending:
                     break
                 idx, pdf_prev, no_mis, prim, mat = idx[keep], pdf_prev[keep], no_mis[keep], prim[keep], mat[keep]
-                dark = dark[keep]
+                dark, depth, base = dark[keep], _rows(depth, keep), _rows(base, keep)
                 beta, hit_p, d, ng = (take(a, keep) for a in (beta, hit_p, d, ng))
                 bary = None if bary is None else take(bary, keep)
                 bounces = bounces.take(keep)
@@ -208,7 +239,7 @@ class PathTracer:
             if tally and depth == 0:
                 tally.first_hit(idx, bsdf)
             albedo = max3(bsdf.reflectance)
-            q = np.minimum(1.0, albedo) if depth >= self.rr_depth else np.ones(len(idx))
+            q = np.where(depth >= self.rr_depth, np.minimum(1.0, albedo), 1.0)
             m = len(idx)
             if caustic_ends is not None:
                 dark &= ~caustic_ends[mat]
@@ -219,7 +250,7 @@ class PathTracer:
             active = np.flatnonzero((smooth & ~bounces.last if self.any_transparent else smooth) & ~dark)
             if len(active) and self.use_nee and not self.lights.empty:
                 at = gatherer(active, m)
-                u_light = sampler.get(base + _LIGHT, at(idx), 3)
+                u_light = sampler.get(_rows(base, active) + _LIGHT, at(idx), 3)
                 ls = self.lights.sample(at(hit_p), u_light[:, 2], u_light[:, :2], in_unit=True)
                 f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility)
                 cos_i = np.abs(dot(ls.wi, at(ns)))
@@ -256,6 +287,7 @@ class PathTracer:
             survive &= max3(beta) > 0
             keep = np.flatnonzero(survive)
             idx, beta, d, dark = idx[keep], take(beta, keep), take(bs.wi, keep), dark[keep]
+            depth = _rows(depth, keep) + 1
             bounces = bounces.take(keep).count(bs, keep, self.limits, max_depth)
             # Strategy switches: pdf_prev 0 makes emission found after a non-delta bounce weigh 0
             # ("light" alone); no_mis makes it weigh 1 (after delta bounces, or "bsdf" alone).
@@ -264,7 +296,15 @@ class PathTracer:
             o64 = take(hit_p, keep)
             o32 = offset_origin(o64, take(ng_f, keep) if reflects else towards(take(ng_f, keep), d))
             skip = prim[keep]
-            tmax = None
+            tmax = None if refill is None else np.full(len(keep), np.inf)  # joined with camera rays'
+            if np.ndim(depth) == 0:
+                if depth >= limit:
+                    break
+            elif len(depth) and depth.max() >= limit:
+                alive = np.flatnonzero(depth < limit)
+                idx, beta, d, dark, depth, pdf_prev, no_mis, skip, tmax = (
+                    a[alive] for a in (idx, beta, d, dark, depth, pdf_prev, no_mis, skip, tmax))
+                o64, o32, bounces = o64[alive], o32[alive], bounces.take(alive)
         return np.ascontiguousarray(L.T)
 
     def _clamp(self, c: np.ndarray, direct: np.ndarray, rows=None) -> np.ndarray:
@@ -325,6 +365,15 @@ class _Bounces:
     def take(self, rows) -> "_Bounces":
         return _Bounces(**{k: v if v is None or np.ndim(v) == 0 else v[rows] for k, v in vars(self).items()})
 
+    def per_path(self, n: int) -> "_Bounces":
+        """The same state with total and last as (n,) arrays (paths at different bounces)."""
+        return _Bounces(**{**vars(self), "total": np.broadcast_to(self.total, n).astype(np.int32),
+                           "last": np.broadcast_to(self.last, n).copy()})
+
+    def join(self, other: "_Bounces") -> "_Bounces":
+        """These paths followed by other's (both per path)."""
+        return _Bounces(**{k: v if v is None else np.concatenate([v, getattr(other, k)]) for k, v in vars(self).items()})
+
     def count(self, bs, rows, limits: np.ndarray, max_depth: int) -> "_Bounces":
         """The state after the bounce sampled in bs (BSDFSample) at rows (N,); limits (4,)."""
         if self.counts is None and self.ray is None and self.min_pdf is None:  # every bounce counts alike
@@ -348,6 +397,30 @@ class _Bounces:
         if self.min_pdf is not None:
             self.min_pdf = np.where(bs.delta[rows], self.min_pdf, np.minimum(self.min_pdf, bs.pdf[rows]))
         return self
+
+
+def _rows(x, rows):
+    """x[rows], or x itself when it is one value for all paths."""
+    return x if np.ndim(x) == 0 else x[rows]
+
+
+class _Refill:
+    """Path regeneration: the camera rays (o64, o32, d, tmax, skip) of an item's n paths,
+    handed out in order to a trace whose live paths are kept near `pool`."""
+
+    def __init__(self, o64, o32, d, tmax, skip, pool: int):
+        self.rays = (o64, o32, d, tmax, skip)
+        self.n, self.next, self.pool = len(d), 0, pool
+
+    @property
+    def left(self) -> int:
+        return self.n - self.next
+
+    def take(self, k: int) -> tuple:
+        """(rows, o64, o32, d, tmax, skip) of the next k paths (k <= left)."""
+        rows = np.arange(self.next, self.next + k)
+        self.next += k
+        return (rows, *(a[rows] for a in self.rays))
 
 
 _RAY_OF_LABEL = np.array([RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, RAY_CAMERA], np.uint8)  # per LABEL_*
