@@ -11,6 +11,7 @@ from ember.engine.integrators import path as path_mod
 from ember.engine.session import RenderSession
 
 from core_scenes import perspective
+from stats import z_test_images
 from test_batch_independence import open_box
 
 
@@ -60,3 +61,31 @@ def test_regeneration_with_pools_that_all_escape(monkeypatch, refills):
     assert sum(refills) > 0
     monkeypatch.setattr(path_mod, "REFILL_POOL", 1e9)
     assert np.array_equal(with_refill.film.mean(), _session(scene).film.mean())
+
+
+def test_regenerated_image_does_not_depend_on_batches_or_workers(refills):
+    """With regeneration, batch sizes 512 (pools of 256), 200 and 56 (items of part of a
+    pass), 4096 (one item of 3072 paths in a pool of 2048) and two worker processes give the
+    same image bit for bit."""
+    scene = open_box(diffuse_bounces=3)
+    first = _session(scene).film.mean()
+    for kw in (dict(batch_size=200), dict(batch_size=56), dict(batch_size=4096), dict(threads=2)):
+        s = _session(scene, **kw)
+        if "threads" in kw:
+            assert s.processes == 2
+        assert np.array_equal(first, s.film.mean()), kw
+    assert sum(refills) > 0.3 * 12 * 256 * 4  # the in-process renders refilled their pools
+
+
+def test_regeneration_agrees_statistically(monkeypatch, refills):
+    """Independent estimates (i.i.d. numbers, two seeds) with and without regeneration agree
+    per pixel: two-sided z-tests on the pixel means with their sample variances (honest for
+    i.i.d. samples), Sidak-corrected over the 32x32x3 values at alpha 0.01."""
+    scene = open_box(width=32, height=32, samples=32, pattern="random", batch_size=2048)
+    a = _session(scene, seed=1)
+    assert sum(refills) > 0.3 * 32 * 1024
+    monkeypatch.setattr(path_mod, "REFILL_POOL", 1e9)
+    b = _session(scene, seed=2)
+    assert not np.array_equal(a.film.mean(), b.film.mean())
+    passed = z_test_images(a.film.mean(), a.film.variance_of_mean(), b.film.mean(), b.film.variance_of_mean())
+    assert passed >= 0.9975, passed
