@@ -5,9 +5,9 @@
     ./dev python bench/cpu_ab.py . .@262144                        # batch sizes (root@batch)
     ./dev python bench/cpu_ab.py . --profile                       # cProfile of one version
 
-Each root is a checkout of Ember, loaded under its own package name; all trace the bench's
-Cornell box at 256x256 (every bounce limit 64, exported once through bpy), items of one
-batch in this process, in alternating order (A, B, B, A, ...) so that the machine's load
+Each root is a checkout of Ember, loaded under its own package name; all trace a bench scene
+(--scene, the Cornell box by default) at 256x256 (every bounce limit 64, exported once through
+bpy), the root's film items in this process, in alternating order (A, B, B, A, ...) so that the machine's load
 falls on all alike. Reports CPU time (time.process_time) per path, per ray, the share of
 it in bounces with fewer than --narrow live paths (the tail), and whether the images are
 bit for bit the same; ratios are medians of per-round ratios to the first root.
@@ -87,12 +87,13 @@ def main(argv=None):
     ap.add_argument("--rounds", type=int, default=6)
     ap.add_argument("--narrow", type=int, default=2000, help="live paths below which a bounce is tail")
     ap.add_argument("--profile", action="store_true", help="cProfile the first root instead")
+    ap.add_argument("--scene", default="cornell_box", help="bench scene (bench/scenes.py)")
     args = ap.parse_args(argv)
-    npz = os.path.join(tempfile.mkdtemp(), "cornell256.npz")
+    npz = os.path.join(tempfile.mkdtemp(), f"{args.scene}256.npz")
     from _bootstrap import load_ember
     load_ember().register()
     from bench.tail import export_cornell
-    export_cornell().save(npz)
+    export_cornell(name=args.scene).save(npz)
     versions = [Version(spec, f"ember_v{i}", npz, args.items) for i, spec in enumerate(args.roots)]
     if args.profile:
         profile = cProfile.Profile(time.process_time)

@@ -30,13 +30,13 @@ sys.path.insert(0, str(ROOT))
 SIZE = 256
 
 
-def export_cornell(size: int = SIZE):
-    """The bench's Cornell box as an Ember Scene (bpy), every bounce limit 64."""
+def export_cornell(size: int = SIZE, name: str = "cornell_box"):
+    """A bench scene (the Cornell box) as an Ember Scene (bpy), every bounce limit 64."""
     import bpy
     from bench.run import _open
     from bench.scenes import by_name
     from ember.engine.blender.export import export_scene
-    scene = _open(by_name("cornell_box").path, size)
+    scene = _open(by_name(name).path, size)
     scene.render.engine = "EMBER"
     scene.ember.max_depth = 64
     sc, _ = export_scene(bpy.context.evaluated_depsgraph_get(),

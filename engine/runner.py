@@ -5,9 +5,11 @@ RenderSession.run (engine/session.py) asks the integrator for its stages and han
 takes their results in item order.
 
 Film-only stages (the path tracer; the photon integrator's camera pass) run as *units* of
-whole passes, one work item each: as many passes as fit in a batch (`Settings.batch_size`
-paths; an image larger than a batch cuts each pass into batch-sized parts instead), fewer
-where a time limit or an adaptive check comes first. Unit sizes are chosen at run time, yet
+whole passes, one work item each: as many passes as fit in the layout's batch
+(`Settings.batch_size` paths, the path tracer's items several batches; an image larger than
+that cuts each pass into batch-sized parts instead), at most a worker's share of the
+stage's passes (a stage of fewer passes than workers cuts each among them), fewer where a
+time limit or an adaptive check comes first. Unit sizes are chosen at run time, yet
 the image does not depend on them: a path's random numbers depend on its pixel and sample
 only, and the film takes samples pass by pass in pass order. Other stages (photons,
 radiance, ppm's pixels) run as the integrator cut them.
@@ -45,6 +47,7 @@ from .integrators.base import Stage
 
 UPDATE_INTERVAL = 0.25
 NOISE_INTERVAL = 1.0
+MIN_SHARE = 1024  # pixels: a pass is split among the workers only into parts at least this big
 
 
 @dataclass
@@ -214,6 +217,9 @@ class Runner:
         n, batch = layout.n_pixels, layout.batch_size
         p, last = stage.start // n, -(-stage.stop // n)
         workers = max(backend.processes, 1)
+        # Every worker gets a share of the passes: an item may hold more than a small render's
+        # share (the path tracer's hold several batches).
+        first, share = p, -(-(last - p) // workers)
         while p < last:
             if self.active is not None and p - self.offset == self.next_check:
                 if self.passes < p - self.offset:
@@ -226,7 +232,7 @@ class Runner:
             m_pixels = n if pixels is None else len(pixels)
             # Passes up to the next check run over this list.
             end = last if self.active is None else min(last, self.offset + self.next_check)
-            cap = max(1, min(batch // m_pixels, end - p))
+            cap = max(1, min(batch // m_pixels, end - p, share))
             if self.active is not None:  # every worker gets part of the passes up to the check
                 cap = min(cap, max(1, -(-(end - p) // workers)))
             if self.limit > 0:
@@ -239,12 +245,15 @@ class Runner:
                 else:
                     cap = max(1, min(cap, int(fit // m_pixels), 2 * self.last_passes))
                 self.last_passes = cap
-            if m_pixels <= batch:
+            part = batch if m_pixels > batch else None  # a pass of several batches
+            if part is None and last - first < workers and m_pixels >= workers * MIN_SHARE:
+                part = -(-m_pixels // workers)  # fewer passes than workers: a share of each pass
+            if part is None:
                 yield self._unit(stage, version, p * m_pixels, (p + cap) * m_pixels)
                 p += cap
-            else:  # a pass of several batches
-                for a in range(0, m_pixels, batch):
-                    yield self._unit(stage, version, p * m_pixels + a, p * m_pixels + min(a + batch, m_pixels))
+            else:
+                for a in range(0, m_pixels, part):
+                    yield self._unit(stage, version, p * m_pixels + a, p * m_pixels + min(a + part, m_pixels))
                 p += 1
 
     def _unit(self, stage: Stage, version: int, start: int, stop: int) -> _Unit:

@@ -38,7 +38,7 @@ class BatchLayout:
         self.n_pixels = len(self.px)
         self.total_paths = s.samples * self.n_pixels
         self.first_path = s.sample_offset * self.n_pixels  # samples [offset, offset + samples)
-        self.n_batches = -(-self.total_paths // s.batch_size)
+        self.n_batches = -(-self.total_paths // self.batch_size)
         self.active = (0, None)  # (version, (M,) border-pixel indices) of the adaptive pixel list
 
     def paths(self, stage: Stage, item: int) -> np.ndarray:

@@ -15,6 +15,7 @@ from .rng import PATTERNS
 from .integrators import NAMES as INTEGRATORS
 from .integrators.irradiance.cache import WEIGHTS
 from .integrators.irradiance.integrator import GATHER_MODES, ICACHE_VIEWS
+from .integrators.path import ITEM_BATCHES
 from .integrators.photon.photon_map import KERNELS
 from .passes import NAMES as PASS_NAMES
 from .scene import FILTERS, STRATEGIES, Scene
@@ -128,6 +129,9 @@ FILM_BYTES_PER_PIXEL = 220
 # Per path of a batch in a tracing process: ray, hit, throughput and shading state arrays
 # (float64 (N,3) each) and NumPy temporaries of one bounce.
 BATCH_BYTES_PER_PATH = 2000
+# Per path of a work item, live or not: its camera ray, radiance, random-number keys and pixel
+# indices (the path tracer's items hold several batches, engine/integrators/path.py ITEM_BATCHES).
+ITEM_BYTES_PER_PATH = 160
 # Per triangle in a tracing process: the Mesh arrays, the Accel's float64 copies, Embree's BVH.
 SCENE_BYTES_PER_TRIANGLE = 400
 PROCESS_BYTES = 150 << 20  # an interpreter with NumPy and Embree loaded
@@ -157,7 +161,8 @@ def memory_estimate(scene: Scene, processes: int | None = None) -> dict:
     film = FILM_BYTES_PER_PIXEL * int(s.width) * int(s.height)
     x0, y0, x1, y1 = s.border
     paths = min(int(s.batch_size), max(int(s.samples), 1) * max((x1 - x0) * (y1 - y0), 1))
-    batches = BATCH_BYTES_PER_PATH * paths
+    item = min(ITEM_BATCHES * int(s.batch_size), max(int(s.samples), 1) * max((x1 - x0) * (y1 - y0), 1))
+    batches = BATCH_BYTES_PER_PATH * paths + ITEM_BYTES_PER_PATH * item
     image = scene.world.image
     texels = scene.materials.image_texels
     scene_bytes = (SCENE_BYTES_PER_TRIANGLE * scene.mesh.n_triangles

@@ -165,9 +165,7 @@ class ViewportSession:
             level = coarse_scene(scene, factor) if factor > 1 else scene
             ls = level.settings
             # Without workers this process traces alone (threads=1: no pool of its own either).
-            ls = ls.replace(persistent=True, threads=s.threads if pool else 1)
-            if factor > 1 and pool is not None:  # the one-sample image: a share for every worker
-                ls = ls.replace(batch_size=min(ls.batch_size, -(-ls.width * ls.height // pool.n)))
+            ls = ls.replace(persistent=True, threads=s.threads if pool else 1)  # (the runner shares out a lone pass)
             level = level.replace(settings=ls)
             session = RenderSession(level, pool=pool, stage_cache=self.stage_cache)
 

@@ -1,6 +1,6 @@
 """Path regeneration (engine/integrators/path.py, PathTracer.render): an item's camera paths
-run in a pool of REFILL_POOL x the batch size live paths, topped up with the item's next
-camera paths as paths end. Every path draws its own numbers (a pure function of seed, pixel,
+(ITEM_BATCHES batches) run in a pool of one batch of live paths, topped up with the item's
+next camera paths as paths end. Every path draws its own numbers (a pure function of seed, pixel,
 sample and dimension; with regeneration the dimension comes from the path's own bounce) and
 sums its own terms in its own order, so the image is the same bit for bit with and without
 regeneration, and with it across batch sizes and worker counts."""
@@ -40,13 +40,13 @@ def _session(scene, **kw):
 @pytest.mark.parametrize("overrides", [dict(), dict(pattern="random"), dict(diffuse_bounces=2, max_depth=6),
                                        dict(rr_depth=0, transparent_bounces=2), dict(clamp_indirect=0.5)])
 def test_regeneration_changes_no_pixel(monkeypatch, refills, overrides):
-    """The same image bit for bit with regeneration (items of 512 paths in pools of 256) and
-    without it (a pool larger than any item): uniform bounce counts, independent numbers,
+    """The same image bit for bit with regeneration (items of 2048 paths in pools of 512) and
+    without it (items of one pool): uniform bounce counts, independent numbers,
     per-type bounce limits, transparency limits, clamping (per-path bounce counts)."""
     scene = open_box(**overrides)
     with_refill = _session(scene)
     assert sum(refills) > 0.3 * scene.settings.samples * 256  # regeneration did run
-    monkeypatch.setattr(path_mod, "REFILL_POOL", 1e9)
+    monkeypatch.setattr(path_mod, "ITEM_BATCHES", 1)  # items of one pool
     without = _session(scene)
     assert with_refill.film.mean().min() > 0
     assert np.array_equal(with_refill.film.mean(), without.film.mean())
@@ -60,14 +60,14 @@ def test_regeneration_with_pools_that_all_escape(monkeypatch, refills):
     scene = scene.replace(camera=perspective((0, -3.5, 0), (0, -9, 0), 45))
     with_refill = _session(scene)
     assert sum(refills) > 0
-    monkeypatch.setattr(path_mod, "REFILL_POOL", 1e9)
+    monkeypatch.setattr(path_mod, "ITEM_BATCHES", 1)  # items of one pool
     assert np.array_equal(with_refill.film.mean(), _session(scene).film.mean())
 
 
 def test_regenerated_image_does_not_depend_on_batches_or_workers(refills):
-    """With regeneration, batch sizes 512 (pools of 256), 200 and 56 (items of part of a
-    pass), 4096 (one item of 3072 paths in a pool of 2048) and two worker processes give the
-    same image bit for bit."""
+    """With regeneration, batch sizes 512 (pools of 512 in items of 2048), 200 and 56 (pools
+    of part of a pass), 4096 (all 3072 paths in one pool: no refill) and two worker processes
+    (units split among them) give the same image bit for bit."""
     scene = open_box(diffuse_bounces=3)
     first = _session(scene).film.mean()
     for kw in (dict(batch_size=200), dict(batch_size=56), dict(batch_size=4096), dict(threads=2)):
@@ -101,7 +101,7 @@ def test_regeneration_agrees_statistically(monkeypatch, refills):
     scene = open_box(width=32, height=32, samples=n, pattern="random", batch_size=2048)
     a = _session(scene, seed=1).film
     assert sum(refills) > 0.3 * n * 1024
-    monkeypatch.setattr(path_mod, "REFILL_POOL", 1e9)
+    monkeypatch.setattr(path_mod, "ITEM_BATCHES", 1)  # items of one pool
     b = _session(scene, seed=2).film
     assert not np.array_equal(a.mean(), b.mean())
     passed = z_test_images(a.mean(), a.variance_of_mean(), b.mean(), b.variance_of_mean())

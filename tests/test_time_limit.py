@@ -187,3 +187,16 @@ def test_stages_before_the_first_pass_and_the_first_pass_always_run(integrator):
     assert stats.stopped_by == "time limit" and stats.samples >= 1
     assert stats.elapsed <= before + N * B + 1e-9  # then one pass (on each worker)
     assert np.all(session.film.count == stats.samples)
+
+
+def test_small_renders_are_shared_among_the_workers():
+    """The path tracer's items hold several batches, more than a small render: its passes are
+    still shared out, 64 passes of 8x8 pixels as two units of 32 (not one of 64), and a single
+    pass of 64x64 pixels in two halves."""
+    for samples, size, unit_paths in ((64, 8, 32 * 64), (1, 64, 2048)):
+        scene = furnace_box(samples=samples, width=size, height=size, batch_size=4096)
+        session = SimulatedSession(scene, startup=0.5, seconds=linear())
+        stats = session.run()
+        assert session.backend.submitted == 2
+        assert stats.elapsed == pytest.approx(0.5 + unit_paths * B)
+        assert np.all(session.film.count == samples)

@@ -42,10 +42,13 @@ from .surface import flat_frame_rows, flat_frames, flat_normals, shading_frame, 
 _GROUPS = 2
 _LIGHT, _BSDF = 0, 1
 
-# Path regeneration (PathTracer.render): an item's camera paths run in a pool of REFILL_POOL x
-# the batch size live paths, topped up with the item's next camera paths whenever fewer than
-# REFILL_BELOW x the pool remain, so that most bounces run wide (bench/cpu_ab.py).
-REFILL_POOL = 0.5
+# Path regeneration (PathTracer.render): an item holds ITEM_BATCHES batches of camera paths,
+# which run in a pool of one batch (Settings.batch_size) of live paths, topped up with the
+# item's next camera paths whenever fewer than REFILL_BELOW x the pool remain. The narrow
+# bounces of the pool's last paths (the tail) then come once per item instead of once per
+# batch: 17 % of the CPU time in the open caustic scene, 3 % in the Cornell box
+# (bench/results/tail/notes.md).
+ITEM_BATCHES = 4
 REFILL_BELOW = 0.5
 
 
@@ -100,12 +103,11 @@ class PathTracer:
         tally: a LightTally that files the radiance into light passes, or None."""
         s = self.scene
         o64, d, tmax = camera_mod.camera_rays(s.camera, s.settings, px, py, sampler)
-        o32, skip = o64.astype(np.float32), np.full(len(px), -1, np.int64)
-        pool = max(int(REFILL_POOL * s.settings.batch_size), 1)
-        if tally is None and len(px) > pool:
-            refill = _Refill(o64, o32, d, tmax, skip, pool)
-            return self.trace(sampler, *refill.take(pool)[1:], stop, refill=refill)
-        return self.trace(sampler, o64, o32, d, tmax, skip, stop, tally=tally)
+        rays = (o64, o64.astype(np.float32), d, tmax, np.full(len(px), -1, np.int64))
+        if tally is not None:  # light passes count per bounce: those items are one batch
+            return self.trace(sampler, *rays, stop, tally=tally)
+        refill = _Refill(*rays, pool=s.settings.batch_size)
+        return self.trace(sampler, *refill.take(min(refill.pool, refill.n)), stop, refill=refill)
 
     def trace(self, sampler, o64, o32, d, tmax, skip, stop=None, first_emission=True,
               max_depth=None, t_first=None, tally=None, caustic_ends=None, refill=None) -> np.ndarray:
@@ -149,8 +151,9 @@ class PathTracer:
                 k = min(refill.pool - len(idx), refill.left)
                 new = _Bounces.start(k, max_depth, self.any_transparent, self.counted, self.ray_kinds,
                                      self.filter_glossy > 0).per_path(k)
+                fresh = (np.arange(refill.next, refill.next + k), *refill.take(k))
                 idx, o64, o32, d, tmax, skip = (np.concatenate([a, b]) for a, b in zip((idx, o64, o32, d, tmax, skip),
-                                                                                          refill.take(k)))
+                                                                                          fresh))
                 depth, dark = np.concatenate([depth, np.zeros(k, np.int64)]), np.concatenate([dark, np.zeros(k, bool)])
                 beta, pdf_prev = np.concatenate([beta, np.ones((k, 3))]), np.concatenate([pdf_prev, np.zeros(k)])
                 no_mis, bounces = np.concatenate([no_mis, np.ones(k, bool)]), bounces.join(new)
@@ -406,21 +409,23 @@ def _rows(x, rows):
 
 class _Refill:
     """Path regeneration: the camera rays (o64, o32, d, tmax, skip) of an item's n paths,
-    handed out in order to a trace whose live paths are kept near `pool`."""
+    handed out in order to a trace whose live paths are kept near `pool`. (Made all at once:
+    made per refill, the same rays cost 1.4x the CPU time of the whole item, most of it in
+    the kernel, from the heap's new pattern of allocations - bench/results/tail/notes.md.)"""
 
     def __init__(self, o64, o32, d, tmax, skip, pool: int):
         self.rays = (o64, o32, d, tmax, skip)
-        self.n, self.next, self.pool = len(d), 0, pool
+        self.n, self.next, self.pool = len(d), 0, max(int(pool), 1)
 
     @property
     def left(self) -> int:
         return self.n - self.next
 
     def take(self, k: int) -> tuple:
-        """(rows, o64, o32, d, tmax, skip) of the next k paths (k <= left)."""
-        rows = np.arange(self.next, self.next + k)
+        """(o64, o32, d, tmax, skip) of the next k paths (k <= left), rows next .. next + k - 1."""
+        rows = slice(self.next, self.next + k)
         self.next += k
-        return (rows, *(a[rows] for a in self.rays))
+        return tuple(a[rows] for a in self.rays)
 
 
 _RAY_OF_LABEL = np.array([RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, RAY_CAMERA], np.uint8)  # per LABEL_*
@@ -435,14 +440,28 @@ class PathIntegrator(Integrator):
     light_passes = True
     adaptive = True
 
+    def __init__(self, scene):
+        from ..tracer import BatchLayout
+
+        super().__init__(scene)
+        if not self.light_passes_of(scene.settings):  # regeneration: items of ITEM_BATCHES pools
+            self.layout = BatchLayout(scene, ITEM_BATCHES * scene.settings.batch_size)
+
+    @staticmethod
+    def light_passes_of(settings) -> tuple:
+        """The light passes a render keeps (the Color passes Direct/Indirect need included)."""
+        return tuple(n for n in passes_mod.needed(settings.passes) if n in passes_mod.LIGHT)
+
     def stages(self, round: int):
         return [self.samples_stage()] if round == 0 else []
+
+    def work_items(self) -> int:
+        return -(-self.layout.total_paths // self.scene.settings.batch_size)  # batches: the runner splits items
 
     def build(self, ctx) -> None:
         super().build(ctx)
         self.tracer = PathTracer(ctx.scene, ctx.accel, ctx.lights)
-        # The light passes this render keeps (the Color passes Direct/Indirect need included).
-        self.tallied = tuple(n for n in passes_mod.needed(ctx.scene.settings.passes) if n in passes_mod.LIGHT)
+        self.tallied = self.light_passes_of(ctx.scene.settings)
 
     def run(self, stage: Stage, item: int, stop=None) -> np.ndarray:
         layout, s = self.layout, self.scene.settings
