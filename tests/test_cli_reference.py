@@ -34,7 +34,8 @@ def run(scenes, *args):
 @pytest.fixture(scope="module")
 def reference(scenes):
     """A 16-sample render of ok.blend (seed 3, independent samples) as the reference, 256x256:
-    a batch of 131072 paths is two passes, so progress lines come every two passes or more."""
+    a path-tracer item of 4 batches of 131072 paths is 8 passes, so progress lines come every
+    8 passes or more (a render of 8 passes is one unit per worker: a single line)."""
     code, out, err = run(scenes, "ok.blend", "-o", "ref.exr", "--samples", "16", "--seed", "3",
                          "--pattern", "random", *SIZE)
     assert code == 0, err
@@ -51,16 +52,16 @@ def _final_relmse(out):
 
 
 def test_relmse_falls_as_samples_grow(scenes, reference):
-    code, out, err = run(scenes, "ok.blend", "-o", "x.exr", "--samples", "8", "--seed", "4",
+    code, out, err = run(scenes, "ok.blend", "-o", "x.exr", "--samples", "32", "--seed", "4",
                          "--pattern", "random", "--reference", reference, *SIZE)
     assert code == 0, err
     lines = _progress_lines(out)
     counts = [n for n, _ in lines]
-    assert len(lines) >= 2 and counts == sorted(set(counts)) and counts[-1] == 8, out
+    assert len(lines) >= 2 and counts == sorted(set(counts)) and counts[-1] == 32, out
     # Independent samples (--pattern random) and seeds, so E[relMSE] = v (1/n + 1/16) with v
     # the per-sample relative variance: each line must follow that curve (fitted on the last
     # one) to 25 %.
-    v = lines[-1][1] / (1 / 8 + 1 / 16)
+    v = lines[-1][1] / (1 / 32 + 1 / 16)
     for n, e in lines:
         assert e == pytest.approx(v * (1 / n + 1 / 16), rel=0.25), (n, e, lines)
     assert _final_relmse(out) == pytest.approx(lines[-1][1], rel=1e-3)
