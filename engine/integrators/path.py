@@ -100,7 +100,8 @@ class PathTracer:
 
     def render(self, sampler, px: np.ndarray, py: np.ndarray, stop=None, tally=None) -> np.ndarray:
         """Radiance estimates (N,3), one path per pixel (px, py). Raises Cancelled if stop is set.
-        tally: a LightTally that files the radiance into light passes, or None."""
+        tally: a LightTally that files the radiance into light passes, or None. Without one,
+        the paths run in a pool of one batch, topped up as paths end (path regeneration)."""
         s = self.scene
         o64, d, tmax = camera_mod.camera_rays(s.camera, s.settings, px, py, sampler)
         rays = (o64, o64.astype(np.float32), d, tmax, np.full(len(px), -1, np.int64))
