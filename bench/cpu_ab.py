@@ -92,8 +92,8 @@ def main(argv=None):
     npz = os.path.join(tempfile.mkdtemp(), f"{args.scene}256.npz")
     from _bootstrap import load_ember
     load_ember().register()
-    from bench.tail import export_cornell
-    export_cornell(name=args.scene).save(npz)
+    from bench.tail import export_bench_scene
+    export_bench_scene(name=args.scene).save(npz)
     versions = [Version(spec, f"ember_v{i}", npz, args.items) for i, spec in enumerate(args.roots)]
     if args.profile:
         profile = cProfile.Profile(time.process_time)

@@ -30,8 +30,8 @@ sys.path.insert(0, str(ROOT))
 SIZE = 256
 
 
-def export_cornell(size: int = SIZE, name: str = "cornell_box"):
-    """A bench scene (the Cornell box) as an Ember Scene (bpy), every bounce limit 64."""
+def export_bench_scene(size: int = SIZE, name: str = "cornell_box"):
+    """Bench scene `name` (bench/scenes.py) as an Ember Scene (bpy), every bounce limit 64."""
     import bpy
     from bench.run import _open
     from bench.scenes import by_name
@@ -102,7 +102,7 @@ def main(argv=None):
     result = {"load_start": os.getloadavg()[0]}
     if args.tail:
         print(f"tail, cornell_box {SIZE}x{SIZE} (load {os.getloadavg()[0]:.1f}):", flush=True)
-        result["tail"] = tail_study(export_cornell(), args.items, args.rounds, args.narrow)
+        result["tail"] = tail_study(export_bench_scene(), args.items, args.rounds, args.narrow)
     if args.throughput:
         from bench.run import throughput
         print(f"throughput, cornell_box {SIZE}x{SIZE} (load {os.getloadavg()[0]:.1f}):", flush=True)

@@ -54,9 +54,9 @@ def main(argv=None):
     sys.path.insert(0, str(ROOT))
     from _bootstrap import load_ember
     load_ember().register()
-    from bench.tail import export_cornell
+    from bench.tail import export_bench_scene
     npz = os.path.join(tempfile.mkdtemp(), f"{args.scene}.npz")
-    export_cornell(name=args.scene).save(npz)
+    export_bench_scene(name=args.scene).save(npz)
     times = {spec: [] for spec in args.roots}
     for k in range(args.rounds):
         for spec in (args.roots if k % 2 == 0 else args.roots[::-1]):

@@ -5,8 +5,9 @@ number of independent work items, run by worker processes (one per core,
 engine/parallel/workers.py) or, for small renders, by one thread of this process. A film
 stage's items are batches of `Settings.batch_size` flat path indices (the path tracer's: 4
 batches, traced one batch wide with path regeneration; pass-major: every pixel of the border
-gets one more sample per pass); their radiance goes to the film in item order. A publish stage's results are reduced in item order by the integrator and the arrays
-published read-only to every worker (shared memory) before the next stage starts. Random
+gets one more sample per pass); their radiance goes to the film in item order. A publish
+stage's results are reduced in item order by the integrator and the arrays published
+read-only to every worker (shared memory) before the next stage starts. Random
 numbers depend only on (seed, domain, stage, item/pixel, sample), so the same seed gives the
 same image whatever the timing or the number of workers.
 

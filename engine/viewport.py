@@ -164,8 +164,9 @@ class ViewportSession:
                 pool = None
             level = coarse_scene(scene, factor) if factor > 1 else scene
             ls = level.settings
-            # Without workers this process traces alone (threads=1: no pool of its own either).
-            ls = ls.replace(persistent=True, threads=s.threads if pool else 1)  # (the runner shares out a lone pass)
+            # Without workers this process traces alone (threads=1: no pool of its own either);
+            # the runner shares the one-sample image's pass among the workers.
+            ls = ls.replace(persistent=True, threads=s.threads if pool else 1)
             level = level.replace(settings=ls)
             session = RenderSession(level, pool=pool, stage_cache=self.stage_cache)
 
