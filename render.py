@@ -942,11 +942,11 @@ def _auto_for_parts(scene) -> list[str]:
     alone, the part at offset 0 could take one that cannot be split and the others another)."""
     import bpy
     from ember.engine.blender.export import export_scene
-    from ember.engine.integrators import auto
+    from ember.engine import choice
 
     exported, _ = export_scene(bpy.context.evaluated_depsgraph_get())
     s = exported.settings
-    resolved = auto.resolve(exported.replace(settings=s.replace(sample_offset=max(s.sample_offset, 1))))
+    resolved = choice.resolve(exported.replace(settings=s.replace(sample_offset=max(s.sample_offset, 1))))
     print(f"Ember: {resolved.lines[0]} (once, for every part)", flush=True)
     flag = {prop: option for option, prop, _, _ in PHOTON_OPTIONS}
     out = ["--integrator", resolved.scene.settings.integrator]

@@ -31,7 +31,7 @@ def _at(points, budget, last):
 
 
 def _found(lines):
-    """The analysis in a few words, from auto's stats lines (engine/analysis.py's summary)."""
+    """The analysis in a few words, from auto's stats lines (engine/choice/analysis.py's summary)."""
     out = []
     for line in lines[1:]:
         if line.startswith("lights:"):

@@ -99,7 +99,7 @@ class Accel:
         self.area = np.empty(mesh.n_triangles)
         self.v0, self.e1, self.e2, self.ng = (self.rows[:, k:k + 3] for k in (0, 3, 6, 9))
         self.n_triangles = mesh.n_triangles
-        self.scene_radius = _bounding_radius(mesh.vertices)
+        self.scene_radius = bounding_radius(mesh.vertices)
         self._lock = threading.Lock()
         self.rays = 0
         self.embree_seconds = 0.0
@@ -296,7 +296,7 @@ def blocks(mesh: Mesh) -> list[tuple[int, int]]:
     return list(zip(cuts[:-1], cuts[1:]))
 
 
-def _bounding_radius(v: np.ndarray) -> float:
+def bounding_radius(v: np.ndarray) -> float:
     if len(v) == 0:
         return 1.0
     lo, hi = v.min(axis=0).astype(np.float64), v.max(axis=0).astype(np.float64)

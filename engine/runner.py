@@ -43,6 +43,7 @@ import numpy as np
 
 from . import adaptive as adaptive_mod
 from .errors import Cancelled
+from .film import Film
 from .integrators.base import Stage
 
 UPDATE_INTERVAL = 0.25
@@ -60,6 +61,23 @@ class _Unit:
     paths: int
     submitted: float = 0.0
     done: float | None = None
+
+
+@dataclass
+class Progress:
+    """What a render has done so far, handed to its on_update callback."""
+
+    samples_done: int
+    samples_target: int
+    fraction: float
+    elapsed: float
+    rays: int
+    rays_per_second: float
+    pass_completed: bool
+    noise: float | None
+    film: Film
+    stage: str = "pixels"  # the stage running now
+    time_limit: float = 0.0  # seconds from the session's start (elapsed counts from there too), 0 = none
 
 
 class Runner:
@@ -116,8 +134,6 @@ class Runner:
 
     def report(self, stage: Stage, pass_completed: bool) -> None:
         if self.on_update is not None:
-            from .session import Progress
-
             elapsed = self.elapsed()
             self.on_update(Progress(self.passes, self.settings.samples, self.fraction(), elapsed, self.rays,
                                     self.rays / max(elapsed, 1e-9), pass_completed, self.noise, self.session.film,

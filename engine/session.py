@@ -25,31 +25,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import integrators
+from . import choice, integrators
 from .film import Film
 from .integrators.base import Stage
 from .parallel import workers
 from .parallel.shared import Publisher
-from .runner import Runner
+from .runner import Progress, Runner
 from .scene import Scene, recentred
 from . import tracer as tracer_mod
 from .tracer import Tracer
 from .validation import has_light, path_only_warnings, validate
-
-
-@dataclass
-class Progress:
-    samples_done: int
-    samples_target: int
-    fraction: float
-    elapsed: float
-    rays: int
-    rays_per_second: float
-    pass_completed: bool
-    noise: float | None
-    film: Film
-    stage: str = "pixels"  # the stage running now
-    time_limit: float = 0.0  # seconds from the session's start (elapsed counts from there too), 0 = none
 
 
 @dataclass
@@ -72,7 +57,7 @@ class RenderStats:
     # light tables} (in one worker; all 0 on a frame that persistent data served whole).
     builds: dict = field(default_factory=dict)
     # Integrator `auto`: the choice with its reasons (first line), the scene analysis and what
-    # was left out and why (engine/integrators/auto.py); empty for an integrator chosen by name.
+    # was left out and why (engine/choice/); empty for an integrator chosen by name.
     auto: tuple = ()
 
     def summary(self) -> str:
@@ -109,7 +94,7 @@ class RenderSession:
         t0 = time.perf_counter()
         self.auto, self.analysis_seconds = (), 0.0
         if scene.settings.integrator == integrators.auto.AutoIntegrator.name:  # analyse and choose, once
-            resolved = integrators.auto.resolve(scene)
+            resolved = choice.resolve(scene)
             scene, self.auto = resolved.scene, resolved.lines
             self.analysis_seconds = time.perf_counter() - t0
         self.warnings: list[str] = []

@@ -12,13 +12,13 @@ import numpy as np
 
 from .errors import EmberError
 from .rng import PATTERNS
-from .integrators import NAMES as INTEGRATORS
+from .integrators import NAMES as INTEGRATORS, REGISTRY
 from .integrators.irradiance.cache import WEIGHTS
 from .integrators.irradiance.integrator import GATHER_MODES, ICACHE_VIEWS
 from .integrators.path import ITEM_BATCHES
 from .integrators.photon.photon_map import KERNELS
 from .passes import NAMES as PASS_NAMES
-from .scene import FILTERS, STRATEGIES, Scene
+from .scene import FILTERS, RAY_ALL, RAY_CAMERA, STRATEGIES, Scene, Settings
 
 
 def validate(scene: Scene) -> None:
@@ -168,8 +168,6 @@ def memory_estimate(scene: Scene, processes: int | None = None) -> dict:
     scene_bytes = (SCENE_BYTES_PER_TRIANGLE * scene.mesh.n_triangles
                    + (4 * image.nbytes if image is not None else 0)  # the image and its tables
                    + (texels.nbytes if texels is not None else 0))
-    from .integrators import REGISTRY
-
     published = REGISTRY[s.integrator].memory_estimate(scene) if s.integrator in REGISTRY else 0
     per_process = batches + scene_bytes + PROCESS_BYTES + published  # every worker maps the published data
     total = film + processes * per_process + published  # ... and the render process reduces it
@@ -220,8 +218,6 @@ PHOTON_VIEWS = ("full", "global", "caustic", "positions", "indirect")
 
 def sample_offset_problems(s) -> list[str]:
     """A sample offset needs an integrator whose samples are independent of each other."""
-    from .integrators import REGISTRY
-
     if s.sample_offset < 0:
         return [f"sample offset must be >= 0 (got {s.sample_offset})"]
     cls = REGISTRY.get(s.integrator)
@@ -307,7 +303,6 @@ def path_only_warnings(scene) -> list[str]:
     s = scene.settings
     if s.integrator == "path":
         return []
-    from .scene import RAY_ALL, RAY_CAMERA, Settings
     out = []
     default = Settings()
     names = ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "transparent_bounces",

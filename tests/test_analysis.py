@@ -1,9 +1,9 @@
-"""Scene analysis (engine/analysis.py) classifies hand-built scenes: an exterior under an
+"""Scene analysis (engine/choice/analysis.py) classifies hand-built scenes: an exterior under an
 environment map, a glass caustic under a point light, a closed diffuse interior, a glossy
 scene and a scene without light."""
 import numpy as np
 
-from ember.engine.analysis import ENCLOSED, analyse
+from ember.engine.choice.analysis import ENCLOSED, analyse
 from ember.engine.scene import (LIGHT_POINT, LIGHT_RECT, LIGHT_SUN, LOBE_DIELECTRIC, LOBE_MICROFACET, MAT_DIFFUSE, Lights,
                                 Materials, Mesh, Scene, World)
 

@@ -1,4 +1,4 @@
-"""Integrator `auto` (engine/integrators/auto.py, engine/choice.py): on the hand-built scenes of
+"""Integrator `auto` (engine/choice/): on the hand-built scenes of
 test_analysis it picks what the rule says, with the reasons in the stats, keeps what the user
 set, and the render builds nothing the scene does not use."""
 import dataclasses
@@ -6,7 +6,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ember.engine.integrators import NAMES, auto
+from ember.engine import choice
+from ember.engine.integrators import NAMES
 from ember.engine.scene import World
 from ember.engine.session import RenderSession
 
@@ -44,19 +45,19 @@ def test_auto_is_registered_last():
     (no_light, "path", ("no light: nothing to cache or map",)),
 ])
 def test_auto_chooses_by_the_rule(build, integrator, why):
-    r = auto.resolve(_auto(build()))
+    r = choice.resolve(_auto(build()))
     assert r.scene.settings.integrator == integrator
     assert r.lines[0] == r.choice.text() and all(w in r.lines[0] for w in why)
     assert r.lines[1:1 + len(r.analysis.summary.splitlines())] == tuple(r.analysis.summary.splitlines())
 
 
 def test_parameters_from_the_analysis_and_the_users_win():
-    r = auto.resolve(_auto(glass_caustic_under_point_light()))
+    r = choice.resolve(_auto(glass_caustic_under_point_light()))
     assert r.analysis.indirect_ratio < 0.5 and r.scene.settings.gather_rays == 4  # little indirect light
     assert "4 gather rays: indirect light is 0 % of direct" in r.lines
-    mine = auto.resolve(_auto(glass_caustic_under_point_light(), gather_rays=9))
+    mine = choice.resolve(_auto(glass_caustic_under_point_light(), gather_rays=9))
     assert mine.scene.settings.gather_rays == 9 and "gather rays: the user's 9" in mine.lines
-    r = auto.resolve(_auto(interior()))
+    r = choice.resolve(_auto(interior()))
     assert r.scene.settings.caustic_photons == 0 and "no caustic map: no specular surface" in r.lines
 
 
@@ -70,7 +71,7 @@ def test_settings_that_only_the_path_tracer_honours_choose_it(override, reason):
     scene = interior()
     if override == "negative":
         scene, override = scene.replace(lights=dataclasses.replace(scene.lights, Le=-scene.lights.Le)), {}
-    r = auto.resolve(_auto(scene, **override))
+    r = choice.resolve(_auto(scene, **override))
     assert r.scene.settings.integrator == "path" and reason in r.lines[0]
 
 

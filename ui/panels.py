@@ -8,6 +8,9 @@ of field). unregister() takes 'EMBER' out of exactly the sets it was added to.
 """
 import bpy
 
+from ..engine.integrators import REGISTRY
+from ..engine.passes import COMBINED, PASSES
+
 ENGINE = 'EMBER'
 
 # EEVEE-only panels that draw data Ember reads (blender.md section 1, "Panels").
@@ -291,8 +294,6 @@ class EMBER_VIEWLAYER_PT_passes(EmberRenderPanel, bpy.types.Panel):
     bl_context = "view_layer"
 
     def draw(self, context):
-        from ..engine.integrators import REGISTRY
-        from ..engine.passes import COMBINED, PASSES
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..scene import (LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY,
                      RAY_SHADOW, RAY_TRANSMIT)
+from .export_material import find_output, follow_link
 
 
 def _unsupported(warn, what: str, name: str) -> None:
@@ -58,7 +59,6 @@ def _node_emission(light, warn) -> np.ndarray:
     tree = getattr(light, "node_tree", None)
     if tree is None:
         return np.ones(3)
-    from .export_material import find_output, follow_link  # local: shared node helpers
     out = find_output(tree, "ShaderNodeOutputLight")
     if out is None:
         return np.ones(3)

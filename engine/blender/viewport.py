@@ -20,7 +20,7 @@ from collections import Counter
 import numpy as np
 
 from ..errors import EmberError
-from ..scene import Camera
+from ..scene import Camera, Lights
 from ..viewport import ViewportSession
 from .export import Warnings, _look_dev, export_scene
 from .export_camera import export_camera
@@ -178,7 +178,6 @@ class LiveExport:
         return table.materials()
 
     def _lights(self, depsgraph, warn):
-        from ..scene import Lights
         rows = []
         for inst in depsgraph.object_instances:
             if inst.show_self and inst.object.type == "LIGHT":

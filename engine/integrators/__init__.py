@@ -15,8 +15,8 @@ NAMES = tuple(REGISTRY)
 
 
 def create(scene):
-    """The integrator object named by scene.settings.integrator ("auto": the one it chooses;
-    the session resolves it once, before anything is built)."""
+    """The integrator object named by scene.settings.integrator, which must not be "auto"
+    (engine/choice resolves that to the integrator it chooses, before anything is built)."""
     if scene.settings.integrator == auto.AutoIntegrator.name:
-        scene = auto.resolve(scene).scene
+        raise ValueError("integrator 'auto' is resolved by engine.choice.resolve before a render is built")
     return REGISTRY[scene.settings.integrator](scene)

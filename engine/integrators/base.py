@@ -23,6 +23,7 @@ from typing import ClassVar, Sequence
 import numpy as np
 
 from ..scene import Scene
+from ..layout import BatchLayout
 
 
 @dataclass(frozen=True)
@@ -75,8 +76,6 @@ class Integrator:
     view_independent: ClassVar[tuple] = ()
 
     def __init__(self, scene: Scene):
-        from ..tracer import BatchLayout
-
         self.scene = scene
         self.layout = BatchLayout(scene)
         self.ctx: TraceContext | None = None

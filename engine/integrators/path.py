@@ -34,6 +34,7 @@ from ..visibility import RayVisibility
 from .base import Integrator, Stage
 from .light_passes import LightTally
 from .surface import flat_frame_rows, flat_frames, flat_normals, shading_frame, towards
+from ..layout import BatchLayout
 
 # Random-number groups (rng.Sampler): 0 the pixel filter, then per bounce _GROUPS groups:
 # light (lanes 0-1 the point on the light, 2 its choice) and BSDF (0-1 the direction, 2 the
@@ -442,8 +443,6 @@ class PathIntegrator(Integrator):
     adaptive = True
 
     def __init__(self, scene):
-        from ..tracer import BatchLayout
-
         super().__init__(scene)
         if not self.light_passes_of(scene.settings):  # regeneration: items of ITEM_BATCHES pools
             self.layout = BatchLayout(scene, ITEM_BATCHES * scene.settings.batch_size)

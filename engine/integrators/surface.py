@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..sampling import frame_from_z
 from ..scene import Mesh
 from ..vec import dot, interpolate, length, scale, take
 
@@ -47,7 +48,6 @@ def flat_frames(mesh: Mesh, flat_normal, ng: np.ndarray):
     triangle, and flipping a side only flips signs, which is exact): a flat-shaded mesh's hits
     then read rows instead of rebuilding them. None for smooth shading or more than
     FLAT_FRAMES_MAX triangles (the tables' memory); ng (T,3) the unit geometric normals (Accel.ng)."""
-    from ..sampling import frame_from_z
     if flat_normal is None or len(flat_normal) > FLAT_FRAMES_MAX:
         return None
     tables = np.empty((4, len(flat_normal), 2, 3))

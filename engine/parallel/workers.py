@@ -40,6 +40,7 @@ import dataclasses
 import os
 import pathlib
 import pickle
+import signal
 import struct
 import subprocess
 import sys
@@ -50,7 +51,10 @@ from multiprocessing import shared_memory
 import numpy as np
 
 from ..errors import Cancelled, EmberError
-from .shared import Publisher
+from ..integrators.base import Stage
+from ..scene import part_digests, scene_from_plain, to_plain
+from ..tracer import BUILDS, Tracer
+from .shared import Attachment, Publisher
 
 _HEADER = struct.Struct("<Q")
 SHARED_PART = 1 << 20  # bytes of arrays from which a scene part reaches the workers through shared memory
@@ -74,16 +78,7 @@ def read_message(stream):
 
 def serve(fin, fout) -> None:
     """The worker's loop (runs in the child process)."""
-    import signal
-
-    from ..integrators.base import Stage
-    from ..scene import scene_from_plain
-    from ..tracer import BUILDS, Tracer
-    from .shared import Attachment
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    from ..errors import Cancelled
-
     tracer, plain = None, {}
     epoch = None  # the pool's cancel counter (a one-element view of shared memory)
     held = {}  # scene part name -> the Attachment its arrays live in (big parts)
@@ -282,8 +277,6 @@ class WorkerPool:
     def load(self, scene) -> dict:
         """Send `scene`, only the parts that changed since the last load; wait until every
         worker has built it. Returns what one worker built ({"embree": 0 or 1, ...})."""
-        from ..scene import part_digests, to_plain
-
         now = part_digests(scene)
         parts = {name: (to_plain(getattr(scene, name)) if now[name] != self.digests.get(name) else None)
                  for name in now}

@@ -54,6 +54,7 @@ from ..surface import towards
 from .cache import RecordOctree, Records, neighbour_clamp, spread_subset
 from .hemisphere import cell_directions, gradient_to_world, record_terms
 from . import radiance
+from ...layout import BatchLayout
 
 GATHER_MODES = ("photon", "path")
 ICACHE_VIEWS = ("full", "records", "indirect")
@@ -94,8 +95,6 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
 
     def __init__(self, scene):
         super().__init__(scene)
-        from ...tracer import BatchLayout
-
         s = scene.settings
         self.layout = BatchLayout(scene, max(1024, s.batch_size // 2))
         if s.icache_gather == "path":

@@ -1,4 +1,4 @@
-"""Path tracing with a caustic photon map (issue 11; `auto` prefers `photon`, see engine/choice.py).
+"""Path tracing with a caustic photon map (`auto` prefers `photon`, see engine/choice/rule.py).
 
 A path tracer finds the light that glass and mirrors focus onto a diffuse surface (L S+ D)
 only when a path leaving that surface through the specular chain happens to hit the light:
@@ -25,9 +25,10 @@ import numpy as np
 from ... import rng
 from ...accel import offset_origin
 from ...vec import gatherer, take
-from .integrator import _GROUPS, _LIGHT, PhotonIntegrator, _accumulate, _sample_rows
+from .integrator import _GROUPS, _LIGHT, PHOTON_BYTES, PhotonIntegrator, _accumulate, _sample_rows
 from ..path import PathTracer
 from ..surface import towards
+from ...layout import BatchLayout
 
 
 class CausticPathIntegrator(PhotonIntegrator):
@@ -38,16 +39,12 @@ class CausticPathIntegrator(PhotonIntegrator):
 
     def __init__(self, scene):
         super().__init__(scene)
-        from ...tracer import BatchLayout
-
         self.layout = BatchLayout(scene)  # one continuation per camera path: the path tracer's batches
         self.n_global_items = 0  # no global map: the path tracer finds the rest
         self._counters["global"] = "no global map: path tracing beyond the first diffuse point"
 
     @classmethod
     def memory_estimate(cls, scene) -> int:
-        from .integrator import PHOTON_BYTES
-
         return 2 * PHOTON_BYTES * (scene.settings.caustic_photons // 10)
 
     def build(self, ctx) -> None:

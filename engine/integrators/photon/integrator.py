@@ -25,7 +25,8 @@ import numpy as np
 
 from ... import camera as camera_mod
 from ... import rng
-from ...accel import offset_origin
+from ...accel import bounding_radius, offset_origin
+from ...bsdf.closure import BSDFSample
 from ...bsdf.fast_path import make_closure, plain_lambert_albedo
 from ...errors import Cancelled
 from ...lights.emission import PhotonEmitter
@@ -34,6 +35,7 @@ from ..base import Integrator, Stage
 from ..surface import flat_normals, shading_frame, towards
 from .photon_map import PhotonMap, RadiancePhotons
 from .tracing import PhotonTracer, diffuse_materials
+from ...layout import BatchLayout
 
 PHOTON_BATCH = 1 << 16  # photon paths per work item
 RADIANCE_BATCH = 1 << 15  # radiance photons per work item
@@ -70,14 +72,10 @@ class PhotonIntegrator(Integrator):
         s = scene.settings
         # Every camera path may spawn G gather rays: fewer paths per item keep an item's rays
         # (memory) and its duration (cancel latency) near the path tracer's.
-        from ...tracer import BatchLayout
-
         self.layout = BatchLayout(scene, max(1024, s.batch_size // max(1, s.gather_rays)))
-        from ...accel import _bounding_radius
-
         v = scene.mesh.vertices
         self.center = (0.5 * (v.min(axis=0) + v.max(axis=0))).astype(np.float64) if len(v) else np.zeros(3)
-        self.radius = _bounding_radius(v)
+        self.radius = bounding_radius(v)
         self.r_global = s.global_radius or GLOBAL_RADIUS * self.radius
         self.r_caustic = s.caustic_radius or CAUSTIC_RADIUS * self.radius
         # Caustics need a specular surface: without one the caustic stream is skipped.
@@ -454,8 +452,6 @@ class PhotonIntegrator(Integrator):
 
 def _sample_rows(bsdf, pts, u):
     """BSDF samples at points pts (K,) (repeats allowed) of a closure built for N points."""
-    from ...bsdf.closure import BSDFSample
-
     if hasattr(bsdf, "sample_at"):  # sampled at any rows directly
         return bsdf.sample_at(pts, u[:, :2])
     n = bsdf.n if hasattr(bsdf, "n") else len(bsdf.ns)

@@ -29,6 +29,7 @@ from ...vec import gatherer
 from ..base import Stage
 from .integrator import _GROUPS, _LIGHT, PHOTON_BATCH, PHOTON_BYTES, PhotonIntegrator, _accumulate, _no_photons
 from .photon_map import PhotonMap
+from ...layout import BatchLayout
 
 PPM_RADIUS = 0.01  # x scene radius: the first pass's radius when the setting is 0
 
@@ -45,8 +46,6 @@ class ProgressivePhotonIntegrator(PhotonIntegrator):
 
     def __init__(self, scene):
         super().__init__(scene)
-        from ...tracer import BatchLayout
-
         self.layout = BatchLayout(scene)  # one BSDF ray per camera path: the usual batches
         s = scene.settings
         self.n_caustic_items = 0

@@ -1,4 +1,4 @@
-"""Scene analysis: what a scene needs, measured cheaply before rendering (issue 11).
+"""Scene analysis: what a scene needs, measured cheaply before rendering.
 
 From the Scene arrays and short pilots through the same Embree scene, light set, path tracer
 and photon tracer the integrators use:
@@ -40,18 +40,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import camera as camera_mod
-from . import rng, sampling
-from .accel import Accel, offset_origin
-from .integrators.base import TraceContext
-from .integrators.path import PathTracer
-from .integrators.photon.tracing import MIN_STORE_ROUGHNESS, PhotonTracer
-from .lights import shapes
-from .lights.emission import PhotonEmitter
-from .lights.light_set import LightSet
-from .scene import (LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, LOBE_DIELECTRIC, LOBE_DIFFUSE,
+from .. import camera as camera_mod
+from .. import rng, sampling
+from ..accel import Accel, offset_origin
+from ..integrators.base import TraceContext
+from ..integrators.path import PathTracer
+from ..integrators.photon.tracing import MIN_STORE_ROUGHNESS, PhotonTracer
+from ..lights import shapes
+from ..lights.emission import PhotonEmitter
+from ..lights.light_set import LightSet
+from ..scene import (LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, LOBE_DIELECTRIC, LOBE_DIFFUSE,
                     LOBE_MICROFACET, LOBE_PHONG, LOBE_TRANSPARENT, Scene)
-from .vec import dot, max3, scale, take
+from ..vec import dot, max3, scale, take
 
 TINY, LARGE = 0.02, 0.25  # light size classes, relative to the scene's bounding radius
 ENCLOSED = 0.05  # escape share below which a scene counts as enclosed

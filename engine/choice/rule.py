@@ -1,5 +1,5 @@
-"""The `auto` integrator's rule: from a scene's analysis (engine/analysis.py) to an integrator,
-its parameters and the reasons (issue 11).
+"""The `auto` integrator's rule: from a scene's analysis (engine/choice/analysis.py) to an
+integrator, its parameters and the reasons.
 
     no light, or controls only the path tracer honours         -> path
     caustics (L S+ D) from small or point lights                -> photon (caustic map, final gathering)
@@ -39,6 +39,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..scene import Settings
 from .analysis import SceneAnalysis
 
 CAUSTIC_SHARE = 0.01  # caustic light at diffuse surfaces worth a caustic map (pilot's share)
@@ -144,8 +145,6 @@ def _why_path(a: SceneAnalysis) -> str:
 def _chosen(integrator: str, params: dict, reasons: tuple, settings) -> Choice:
     """The Choice with params {field: (value, note)}, except the fields the user set (a value
     other than the default): those keep the user's value."""
-    from .scene import Settings
-
     default = Settings()
     mine = {k: v for k, v in params.items() if getattr(settings, k) == getattr(default, k)}
     notes = tuple(note for _, note in mine.values()) + tuple(
