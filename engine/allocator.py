@@ -2,8 +2,8 @@
 
 A bounce allocates hundreds of short-lived arrays of 0.1-2 MB. glibc serves blocks of that
 size with mmap (or trims them off the heap top when freed), so every new array costs fresh
-page faults on first touch: measured 5x slower element-wise operations on 50k-row arrays
-than on reused memory. Raising glibc's mmap and trim thresholds (mallopt(3)) lets the heap
+page faults on first touch, which make element-wise operations on mid-sized arrays several
+times slower than on reused memory. Raising glibc's mmap and trim thresholds (mallopt(3)) lets the heap
 reuse the memory. Process-wide, idempotent; a no-op where glibc is not the allocator.
 """
 from __future__ import annotations

@@ -8,7 +8,7 @@ The noise estimate compares blocks of passes: at every power of two M of complet
 the mean of passes [0, M/2) against that of [M/2, M). Their half-difference estimates the
 error of the M-pass mean for any sample pattern - Sobol's aligned blocks of 2^k samples are
 each a well-stratified net, while the sample variance ignores that stratification and
-overstates Sobol's error (3x in variance at 64 passes). Between powers of two the estimate
+overstates Sobol's error. Between powers of two the estimate
 is scaled by sqrt(M / N), the slowest (independent-sample) rate.
 
 With adaptive sampling pixels have different sample counts, so the blocks of passes do not

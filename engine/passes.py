@@ -9,8 +9,8 @@ Every pass but Combined is optional and costs nothing unless requested (Settings
   camera, world space), Denoising Normal (the same in camera
   space, as Cycles gives it to the denoiser), Denoising Albedo (the closure's reflectance at
   the first hit; Cycles looks through mirror and glass to the next rough hit, Ember does
-  not). All averaged over the samples, as Cycles averages them (measured on its passes:
-  Depth and Position match Cycles' as means, not as the first sample's hit).
+  not). All averaged over the samples, as Cycles averages them (its Depth and Position
+  passes are means, not the first sample's hit).
 - "light" passes split Combined by what the camera sees (Emission, Environment) and, for the
   rest, by the kind of lobe at the first bounce (diffuse, glossy, transmission) and whether
   the light arrived after one bounce (Direct) or more (Indirect); the Color passes are the

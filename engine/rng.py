@@ -26,7 +26,7 @@ bit i is input bit i XOR a function of the lower bits (Laine & Karras 2011, "Str
 for stochastic transparency"; constants of Burley's improved hash) is exactly a nested-uniform
 permutation of the digits. The Sobol generator-matrix product is four byte-table gathers per
 32-bit index (two lanes per 64-bit table entry). Bit reversal swaps bits, pairs and nibbles
-with masks and then the bytes: in NumPy that is ~1.8x faster than four byte-table gathers
+with masks and then the bytes: in NumPy that is faster than four byte-table gathers
 (bench/rng_study.py).
 """
 import numpy as np
@@ -253,7 +253,7 @@ class Sampler:
     def _work(self, name: str, dtype, size: int) -> np.ndarray:
         """Scratch array `name` of at least `size` elements, kept between calls: NumPy's large
         temporaries otherwise come back from the allocator as fresh pages on every call, and
-        faulting them in costs more than the arithmetic (2-3x for get(d, None, 2) on 65536 rows)."""
+        faulting them in costs more than the arithmetic."""
         a = self._scratch.get(name)
         if a is None or len(a) < size:
             a = self._scratch[name] = np.empty(size, dtype)

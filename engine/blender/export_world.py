@@ -60,7 +60,7 @@ def mapping_matrix(vector_type: str, rotation, scale) -> np.ndarray:
 def image_pixels(image, warn, owner: str) -> np.ndarray:
     """(H, W, 3) float32 scene-linear pixels of a bpy Image, rows top-down.
 
-    Read once with foreach_get into a float32 buffer (pixels[:] is ~15x slower). None if the
+    Read once with foreach_get into a float32 buffer (pixels[:] builds a Python list: many times slower). None if the
     image has no pixels (missing file): the caller renders Cycles' magenta.
     """
     w, h = (int(v) for v in image.size)

@@ -10,28 +10,17 @@ integrator, its parameters and the reasons.
     anything else (open scenes under a sky, glossy scenes,
       a Cornell box at 64x64)                                   -> path
 
-Measured on the bench scenes at 64x64 (bench/results/auto/report.md), on a quiet machine:
-the path tracer wins where its noise falls fast - open scenes under a sky, mostly direct
-light - and, at 64x64, in the Cornell box (1.5x less error than the irradiance cache at 8 s,
-1.8x at 30 s): a 64x64 render takes thousands of samples in 30 s, and the cache's records
-(one per 7 pixels at that size) cost more than they save. At 256x256 the cache beats it 4.8x
-at 8 s. What decides is the noise the indirect light adds to a path sample, E[I^2] / E[L]^2
-at the first diffuse hits (analysis pilot): 1.2 in the Cornell box, 3.5 with its light 1 cm
-below the ceiling (the cache 1.6x better at 8 s), 11 in the sunlit interior (5x), 45 with a
-light 5 mm from a wall. A cache's advantage grows with the pixels it serves, so the noise is
-scaled by the image's linear size over 64 pixels before it is compared with NOISY_INDIRECT.
-Where the noise is a hot spot (HOT_SPOT) and every light is finite, photon mapping with final
-gathering beat the cache 2.4x at 8 s and 1.6x at 30 s: its gather rays read the spot from the
-map's density estimate instead of finding it by chance. Lit through a window by the sun and
-sky (the interior) the map starves (95 % of the sun's photons land outside), so distant
-lights and skies keep the cache.
-Caustics: path tracing with a caustic map (`path_caustic`) beat `photon` at 30 s but lost 4-7x
-at 8 s on caustic_point, so `photon` is the choice that holds at both budgets. Its gather rays:
-4 where indirect light is weak (the caustic scene's error fell 3.4x at 8 s and 1.4x at 30 s
-against 16), else 8: more camera samples per second, which the edges of lights in small images
-need (hard_phong at 8 s: 3.9e-4 against 5.5e-4 with 16). With strong indirect light in a small
-image (at most SMALL_IMAGE pixels) the global map's bias shows before its noise: 500k photons
-(hard_phong at 30 s: 2.0e-4 against 3.1e-4 with 200k).
+Why, in short: the path tracer wins where its noise falls fast (open scenes under a sky,
+mostly direct light, small images that take thousands of samples); what decides otherwise is
+the noise the indirect light adds to a path sample, E[I^2] / E[L]^2 at the first diffuse hits
+(the analysis pilot). A cache's advantage grows with the pixels each record serves, so that
+noise is scaled by the image's width over 64 pixels before it is compared with NOISY_INDIRECT.
+In a hot spot lit by finite lights, final gathering reads the spot from the photon map's
+density estimate instead of finding it by chance; sun and sky photons mostly land outside a
+room, so distant lights and skies keep the cache. `photon` (not `path_caustic`) is the choice
+for caustics because it holds at short and long budgets alike. Every threshold below sits
+about a factor of 2 from the nearest bench scene on either side; the measurements that set
+them are in bench/results/auto/thresholds.md.
 A setting the user changed from its default is never overridden; an integrator chosen by
 name is not analysed at all.
 """

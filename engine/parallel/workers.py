@@ -1,7 +1,7 @@
 """Worker processes that run integrator work items, so that every CPU core renders.
 
 Threads do not scale here: a wavefront bounce is hundreds of mid-sized NumPy operations
-and the GIL is held between them (measured: 1.05x with two threads on two cores). Each
+and the GIL is held between them, so a second thread adds almost nothing. Each
 worker is a separate Python process started with the parent's interpreter
 (`engine/parallel/worker_main.py`), which loads this package by file path, receives the
 Scene as plain arrays (no class references, so it works whatever name Blender imported us
