@@ -1,4 +1,4 @@
-"""The `auto` integrator against the hand-picked ones (issue 11's target), from a bench/run.py
+"""The `auto` integrator against the hand-picked ones, from a bench/run.py
 results.json with runs of path, photon, icache and auto:
 
     python bench/run.py --integrators path,photon,icache,auto --budgets 8,30 --no-cycles \
@@ -88,7 +88,7 @@ def report(results, out_dir):
     run = results["run"]
     budgets = tuple(run["budgets"])
     table = rows(results, budgets)
-    lines = ["# `auto` against the hand-picked integrators (issue 11)", "",
+    lines = ["# `auto` against the hand-picked integrators", "",
              f"{run['date']}, {run['resolution']}x{run['resolution']}, load {run['load_start']:.1f} at the start, "
              f"{run['load_end']:.1f} at the end; relMSE less the reference's own noise, one run per "
              "point on a shared 2-core machine (1-minute load per row). Target: auto within "

@@ -1,4 +1,4 @@
-"""HDRI scene (issue 4): direct-light strategies at equal samples, and Ember vs Cycles.
+"""HDRI scene: direct-light strategies at equal samples, and Ember vs Cycles.
 
     python bench/environment_compare.py [--samples 256] [--cycles]
 

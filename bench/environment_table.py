@@ -1,4 +1,4 @@
-"""Build time and memory of the environment-map sampling table (issue 4).
+"""Build time and memory of the environment-map sampling table.
 
     python bench/environment_table.py [--sizes 8192x4096 16384x8192] [--repeat 3]
 

@@ -1,4 +1,4 @@
-"""Irradiance cache study (issue 10): the cache against brute-force final gathering, gradients at
+"""Irradiance cache study: the cache against brute-force final gathering, gradients at
 equal records, the accuracy a, Ward's weight against Tabellion-Lamorlette's.
 
     ./dev python bench/icache_study.py --parts converged         # converged indirect images (slow)

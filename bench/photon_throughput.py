@@ -2,7 +2,7 @@
 
     python bench/photon_throughput.py [--photons 1000000] [--scenes cornell_box,caustic] [--out FILE]
 
-Issue 9's target: 1 million photons traced, stored and indexed in under 5 s on two cores,
+Target: 1 million photons traced, stored and indexed in under 5 s on two cores,
 at most 64 bytes per stored photon including the search structure.
 
 For each scene, a RenderSession of the `photon` integrator (exported from the .blend like F12,

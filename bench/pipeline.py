@@ -1,4 +1,4 @@
-"""Pipeline overheads (issue 15): per-frame cost of an animation with and without persistent
+"""Pipeline overheads: per-frame cost of an animation with and without persistent
 data, and Dask against a local render of the same work.
 
     ./dev python bench/pipeline.py                 # both studies, ~2 min on 2 cores
@@ -7,8 +7,7 @@ data, and Dask against a local render of the same work.
 Per-frame overhead: an animation whose camera moves (so every frame is a new image, but the
 mesh, lights and world stay) rendered through bpy.ops.render.render with two worker
 processes, few samples so that the fixed costs show; the same frames with Blender's
-Persistent Data off (every frame starts its workers and builds Embree: the behaviour before
-issue 15) and on. Reports the median wall time of frames 2..N and the builds they made.
+Persistent Data off (every frame starts its workers and builds Embree) and on. Reports the median wall time of frames 2..N and the builds they made.
 
 Dask overhead: the same frames with --dask-samples samples, by `render.py --frames` on this
 machine (two worker processes, persistent data) and by `render.py --scheduler local:2` (a

@@ -1,4 +1,4 @@
-"""Material-preview cost (issue 13): a scene shaped like Blender's material preview (a sphere
+"""Material-preview cost: a scene shaped like Blender's material preview (a sphere
 on a checker floor under two area lights, 128x128 and the 32x32 icon), rendered through the
 preview path of engine/blender/final.py (final.PREVIEW_OVERRIDES: in-process, few samples).
 

@@ -1,4 +1,4 @@
-"""Radiance caching (issue 10 item 8): equal-time error of icache with radiance caching against
+"""Radiance caching: equal-time error of icache with radiance caching against
 icache without it (final gathering on the glossy surfaces) and the path tracer.
 
     ./dev python bench/radiance_cache.py --reference     # the converged reference (slow)

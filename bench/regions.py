@@ -16,7 +16,7 @@ renderer is measured on the same pixels and anyone re-running the bench gets the
 Metrics inside the region (`region_metrics`): relMSE over the region's pixels and channels
 (the same formula as the whole image: mean((x - r)^2 / (r^2 + EPS))), the same with the
 reference's own expected relMSE there subtracted, and the ratio of the region's mean
-(all channels) to the reference's: the caustic's energy, the figure issue 9's 3 % target is
+(all channels) to the reference's: the caustic's energy, the figure the 3 % target is
 about.
 """
 from __future__ import annotations

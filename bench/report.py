@@ -287,7 +287,7 @@ def caustic_regions(results, out_dir):
 
 
 def caustic_targets(results, out_dir=None):
-    """Issue 9's caustic targets from the region metrics, as table lines."""
+    """The caustic targets from the region metrics, as table lines."""
     lines = []
     for name, sc in results["scenes"].items():
         reg = sc.get("caustic_region")
@@ -307,7 +307,7 @@ def caustic_targets(results, out_dir=None):
             plot_region(name, reg, pathlib.Path(out_dir) / f"{name}_region.png")
             lines += [f"![{name} caustic region]({name}_region.png)", ""]
         if name == "caustic":
-            lines += ["Target (issue 9): at equal time 8 s and 30 s, relMSE in the region of `photon` and `ppm` at most "
+            lines += ["Target: at equal time 8 s and 30 s, relMSE in the region of `photon` and `ppm` at most "
                       "1/5 of Cycles' and at most 1/10 of Ember's path tracer (both read at the photon run's own time on "
                       "their log-log line, slope -1 outside their range; relMSE less the reference's own):", "",
                       "| integrator | budget | time s | relMSE - ref | raw relMSE | Cycles, same time | ratio (<= 0.2) | "
@@ -329,7 +329,7 @@ def caustic_targets(results, out_dir=None):
                                  f"{'met' if met else 'not met'} |")
             lines.append("")
         if name == "caustic_point":
-            lines += ["Target (issue 9): the point-light caustic within 3 % of the reference's caustic energy (region mean) "
+            lines += ["Target: the point-light caustic within 3 % of the reference's caustic energy (region mean) "
                       "in under 10 s; every image before 10 s:", "",
                       "| renderer | budget | time s | region mean / reference | within 3 % |", "|---|---:|---:|---:|---|"]
             for rname, pts in runs.items():
@@ -389,7 +389,7 @@ def write(results, out_dir):
     lines += ["## Headline: Ember's last image (time limit = the largest budget)", ""] + headline(results) + [""]
     caustic_regions(results, out_dir)
     if any("caustic_region" in sc for sc in results["scenes"].values()):
-        lines += ["## Caustic region (issue 9's targets)", ""] + caustic_targets(results, out_dir)
+        lines += ["## Caustic region", ""] + caustic_targets(results, out_dir)
     lines += ["## Error against time (relMSE less the reference's own, first image past each budget)", ""]
     for name, sc in results["scenes"].items():
         if "runs" in sc:

@@ -1,4 +1,4 @@
-"""The tail of a wavefront batch and the path tracer's throughput (issue 11 item 4).
+"""The tail of a wavefront batch and the path tracer's throughput.
 
     ./dev python bench/tail.py --tail            # in one process: CPU time per path and the
                                                  # tail's share

@@ -1,4 +1,4 @@
-"""Viewport speed (issue 13): time to the first image and to N samples, export and update
+"""Viewport speed: time to the first image and to N samples, export and update
 times, on the Cornell box and on the Cornell box with a ~1M-triangle sphere, through the
 same driver Blender calls (engine/blender/viewport.py) with a fake region and no GPU.
 

@@ -1,6 +1,6 @@
 """Hard-case scenes with analytic answers, built as arrays (engine.scene; no bpy needed).
 
-The hard-case suite (tests/test_hard_cases.py, issue 12 item 6) renders these and the
+The hard-case suite (tests/test_hard_cases.py) renders these and the
 Cycles-referenced .blend files of scenes/build_bench.py (tiny light, light touching a wall,
 degenerate/duplicated triangles, near-mirror Phong, far origin, grazing floor). Each builder
 returns (Scene, expected), where `expected` says what the image must be:

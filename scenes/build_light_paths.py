@@ -1,4 +1,4 @@
-"""Build the light-path and lens test scenes (issue 14) and, with --references, their Cycles
+"""Build the light-path and lens test scenes and, with --references, their Cycles
 references (tests/data/NAME_cycles.exr, 32x32, via scenes/reference.py --keep-light-paths).
 
     python scenes/build_light_paths.py [--references] [--only NAME]

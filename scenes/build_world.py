@@ -1,4 +1,4 @@
-"""Build the environment-lighting scenes (issue 4) from bpy and NumPy, and save them as .blend.
+"""Build the environment-lighting scenes from bpy and NumPy, and save them as .blend.
 
     python scenes/build_world.py [--out DIR] [--only hdri|env_marker] [--glossy]
 

@@ -5,7 +5,7 @@ dimension and it sums its own contributions, so the only way a neighbour can mat
 computation chosen per batch - as the Lambert fast path was (engine/bsdf/closure.py): a
 plain Lambertian point got the fast path's numbers in an all-Lambertian batch and the
 general closure's, different by an ulp, when another path of its batch hit glass or a
-glossy wall (found in issue 11's path-regeneration work)."""
+glossy wall (found in the path-regeneration work)."""
 import numpy as np
 
 from ember.engine.scene import (LIGHT_POINT, LOBE_DIELECTRIC, LOBE_MICROFACET, LOBE_TRANSPARENT, MAT_DIFFUSE, Lights,

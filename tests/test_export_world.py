@@ -1,4 +1,4 @@
-"""World export (issue 4): Environment Texture pixels, colour spaces, projection, Mapping node
+"""World export: Environment Texture pixels, colour spaces, projection, Mapping node
 chain -> env_from_world, strength, visibility and the warnings for what is not supported."""
 import math
 import os

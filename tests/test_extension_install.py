@@ -1,4 +1,4 @@
-"""The built extension installs offline and renders (issue 15's lean extension).
+"""The built extension installs offline and renders.
 
 Builds this platform's zip (`blender_ext.py build --split-platforms`, needs ./wheels from
 tools/fetch_wheels.sh; skipped without them), installs it with Blender's own operator into a

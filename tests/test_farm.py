@@ -1,4 +1,4 @@
-"""Distributed rendering on Dask (issue 15): a LocalCluster of two worker processes on
+"""Distributed rendering on Dask: a LocalCluster of two worker processes on
 loopback renders a short animation and split frames; the images equal the local renders
 (split frames to float32 rounding, whole frames bit for bit), also when one worker is killed
 in the middle of the job. About 40 s on two busy cores (bpy starts once per task)."""

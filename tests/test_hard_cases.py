@@ -1,4 +1,4 @@
-"""Hard-case suite (issue 12 item 6): numerically hostile scenes render with no NaN/Inf, no
+"""Hard-case suite: numerically hostile scenes render with no NaN/Inf, no
 negative values, no rejected non-finite samples, and means within statistical tolerance of
 their reference: analytic (scenes/build_hard.py, rendered in the core without bpy), an
 untranslated twin, or Cycles (bench/references/hard_*_64.exr of scenes/build_bench.py's

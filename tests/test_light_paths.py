@@ -1,4 +1,4 @@
-"""Light-path controls, depth of field and ray visibility (issue 14) against Cycles references of the same
+"""Light-path controls, depth of field and ray visibility against Cycles references of the same
 .blend (scenes/build_light_paths.py: one control changed per scene, 32x32, 16 runs x 1024
 spp), through Blender as tests/test_reference.py does: per-pixel z-test, relMSE against its
 expectation from the honest (between-seed) variances, and the image and quadrant means.

@@ -175,7 +175,7 @@ def _runtime_imports() -> set:
 
 
 def test_every_wheel_is_imported_at_run_time(manifest):
-    """The zip carries no package that nothing imports (issue 15: 263 MB of SciPy did)."""
+    """The zip carries no package that nothing imports (263 MB of SciPy did)."""
     names = {re.match(r"\./wheels/([A-Za-z0-9_]+)-", w).group(1).lower() for w in manifest["wheels"]}
     assert names == set(PACKAGES) | {"colorama"}
     imported = _runtime_imports()

@@ -1,7 +1,7 @@
 """The caustic under a glass sphere (scenes/caustic.blend: a small emissive sphere, L S+ D E)
 against Mitsuba 3's particle tracer (bench/references/caustic_64.exr, bench/mitsuba_reference.py).
 
-Issue 9: the caustic's energy (the mean over the caustic region, bench/regions.py) within
+The caustic's energy (the mean over the caustic region, bench/regions.py) within
 3 % of the reference. A path tracer reaches the light through the glass only by rare
 BSDF-sampled rays: at 64 samples its caustic is a few fireflies (relMSE 15-33 there), which
 shows the region's metrics tell a caustic from noise.
@@ -62,7 +62,7 @@ def test_a_path_tracer_finds_the_caustic_only_as_fireflies(caustic):
 
 @pytest.mark.slow
 def test_ppm_error_keeps_falling_with_passes(caustic):
-    """Issue 9: the log-log slope of relMSE against passes between 16 and 256 is steeper than
+    """The log-log slope of relMSE against passes between 16 and 256 is steeper than
     -0.5 (a fixed-radius photon map would flatten out at its bias)."""
     scene, reference, mask = caustic
     from bench.metrics import rel_mse

@@ -1,4 +1,4 @@
-"""Pipelines (issue 15): render.py as a farm runs it - frames, a missing engine, threads,
+"""Pipelines: render.py as a farm runs it - frames, a missing engine, threads,
 logs, metadata, split frames and their merge - on a tiny animated scene in a subprocess."""
 from __future__ import annotations
 

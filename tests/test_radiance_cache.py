@@ -1,4 +1,4 @@
-"""Radiance caching (engine/integrators/irradiance/harmonics.py, radiance.py; issue 10 item 8).
+"""Radiance caching (engine/integrators/irradiance/harmonics.py, radiance.py).
 
 The basis against exact quadrature; record coefficients that transform as spherical harmonics
 under rotation (world-space storage needs no rotation of the vector, so this is what has to

@@ -1,4 +1,4 @@
-"""Every bad input answered (issue 12 item 2): scenes and options Ember cannot render as asked
+"""Every bad input answered: scenes and options Ember cannot render as asked
 get one clear line (CLI exit 2, Blender ERROR report), features it ignores get one warning per
 feature naming the datablocks, and the cases it can render (a world without objects, lights of
 zero power, a 1x1 frame) render. Core checks run without bpy; the rest through render.py."""
@@ -354,7 +354,7 @@ def test_volume_only_object_is_transparent(bad_scenes):
     assert img[..., :3].min() > 0.0
 
 
-# ---- interruption (issue 12 item 3) ---------------------------------------------------------
+# ---- interruption ---------------------------------------------------------
 LONG = ["--samples", "100000", "--resolution", "200x200", "--no-progress"]
 
 

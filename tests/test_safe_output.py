@@ -1,4 +1,4 @@
-"""Safe output (issue 12 item 1): an image is written to a temporary file beside the
+"""Safe output: an image is written to a temporary file beside the
 destination, checked, and renamed into place. A failed write (full disk, a writer that stops
 short without saying so, an interrupt, a killed process) leaves a previous file untouched and
 no temporary behind, and the CLI exits 1 with one line."""

@@ -101,7 +101,7 @@ MUTATIONS = [
          old="weight = np.where(reflected, 1.0, 1.0 / (eta_rel * eta_rel))",
          new="weight = np.where(reflected, 1.0, 1.0)",
          tests=["tests/test_bsdf_models.py", "tests/test_materials.py"]),
-    # --- photon mapping (issue 9) ------------------------------------------------------------
+    # --- photon mapping ------------------------------------------------------------
     dict(name="photon_flux_scale_1.03",
          note="every photon carries 3 % too much flux",
          file="engine/integrators/photon/tracing.py",
@@ -126,7 +126,7 @@ MUTATIONS = [
          old="self.tau = (self.tau + phi) * (shrink * shrink)[:, None]",
          new="self.tau = self.tau + phi",
          tests=["tests/test_photon.py"]),
-    # --- irradiance-cache records (issue 10, first step) ---------------------------------------
+    # --- irradiance-cache records ---------------------------------------
     dict(name="irradiance_gradient_drops_first_row",
          note="translational gradient without the j = 1 row (as one reference implementation's loop)",
          file="engine/integrators/irradiance/hemisphere.py",
@@ -145,7 +145,7 @@ MUTATIONS = [
          old="u = _tangent(phi_c)",
          new="u = _tangent(phi_lo)",
          tests=["tests/test_irradiance_records.py"]),
-    # --- the irradiance cache (issue 10) -------------------------------------------------------
+    # --- the irradiance cache -------------------------------------------------------
     dict(name="octree_one_cell_per_record",
          note="a record stored only in the octree cell of its centre's corner, not every cell it reaches",
          file="engine/integrators/irradiance/octree.py",
@@ -194,7 +194,7 @@ MUTATIONS = [
          old='return self.stores if self.n_caustic_items else None',
          new='return None',
          tests=["tests/test_icache.py"]),
-    # --- sampling controls (issue 14: time limit, animated seed, adaptive sampling) --------------
+    # --- sampling controls (time limit, animated seed, adaptive sampling) --------------
     dict(name="time_limit_no_cancel",
          note="work in flight at the time limit is finished instead of cancelled",
          file="engine/runner.py",
