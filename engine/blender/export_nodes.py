@@ -1,0 +1,178 @@
+"""A bpy node tree -> engine.nodes.graph.Graph: flat, plain data the core compiles.
+
+Walks back from the requested output sockets, so only what reaches them is exported, and
+resolves on the way what Blender's own evaluation resolves: reroutes; muted links (nothing
+arrives) and muted nodes (each output passes the input Blender's internal links give it, else
+its type's zero); node groups at any depth (a group's output is the inner Group Output's input,
+an inner Group Input's output the group node's input outside), so the core never sees a group.
+A node's settings become plain props: every enum, number, boolean, string and vector property
+it adds to a plain ShaderNode, and what its datablock pointers hold (`PROPS` exporters:
+colour ramps, curves, images, objects).
+"""
+from __future__ import annotations
+
+import bpy
+
+from ..nodes.base import convert
+from ..nodes.graph import Graph, Input, Link, Node
+
+_GROUP_KINDS = {"ShaderNodeGroup", "NodeGroup"}
+_BASE_PROPS = None  # the properties every ShaderNode has (name, location, ...): not settings
+_PLAIN = {"ENUM", "BOOLEAN", "INT", "FLOAT", "STRING"}
+MAX_DEPTH = 256  # reroutes and group levels followed from one socket
+
+
+def socket_type(socket) -> str:
+    return str(socket.type).lower()
+
+
+def socket_value(socket):
+    """A socket's own value as plain data: float, or a tuple of 3 (colours lose alpha)."""
+    value = getattr(socket, "default_value", None)
+    if value is None:
+        return 0.0
+    try:
+        values = tuple(float(v) for v in value)
+    except TypeError:
+        return float(value) if isinstance(value, (int, float, bool)) else 0.0
+    return values[:3] if len(values) >= 3 else values
+
+
+def _base_props() -> set:
+    global _BASE_PROPS
+    if _BASE_PROPS is None:
+        _BASE_PROPS = {p.identifier for p in bpy.types.ShaderNode.bl_rna.properties}
+    return _BASE_PROPS
+
+
+def _props(node, context) -> tuple:
+    out = {}
+    for prop in node.bl_rna.properties:
+        key = prop.identifier
+        if key in _base_props() or key in ("node_tree",):
+            continue
+        if prop.type in _PLAIN:
+            value = getattr(node, key)
+            if prop.type == "FLOAT" and getattr(prop, "array_length", 0):
+                value = tuple(float(v) for v in value)
+            elif prop.type == "ENUM" and getattr(prop, "is_enum_flag", False):
+                value = tuple(sorted(value))
+            out[key] = value
+        elif prop.type == "POINTER" and key in PROPS:
+            out[key] = PROPS[key](getattr(node, key), context)
+    if node.bl_idname == "ShaderNodeValue":
+        out["value"] = float(node.outputs[0].default_value)
+    elif node.bl_idname == "ShaderNodeRGB":
+        out["color"] = socket_value(node.outputs[0])
+    return tuple(sorted(out.items()))
+
+
+def _color_ramp(ramp, context):
+    return (ramp.interpolation, ramp.color_mode, ramp.hue_interpolation,
+            tuple((float(e.position), tuple(float(c) for c in e.color)) for e in ramp.elements))
+
+
+def _object(ob, context):
+    """An object's world_from_object matrix as 16 row-major floats (None: no object)."""
+    if ob is None:
+        return None
+    return tuple(float(v) for row in ob.matrix_world for v in row)
+
+
+# Pointer properties by name -> exporter(value, context) of plain data.
+PROPS = {"color_ramp": _color_ramp, "object": _object}
+
+
+class _Export:
+    def __init__(self, warn=None):
+        self.nodes: list[Node] = []
+        self.index: dict = {}  # (group path, node name) -> index in self.nodes
+        self.warn = warn or (lambda text: None)
+
+    def source(self, socket, path: tuple, depth: int = 0) -> Input:
+        """The value arriving at input `socket` (inside groups `path`, a tuple of group nodes)."""
+        me = Input(socket.identifier, socket_type(socket), socket_value(socket))
+        if depth > MAX_DEPTH:
+            self.warn(f"node links nest deeper than {MAX_DEPTH} levels at '{socket.node.name}'")
+            return me
+        links = [l for l in socket.links if not getattr(l, "is_muted", False) and getattr(l, "is_valid", True)]
+        if not socket.is_linked:
+            return me
+        if not links:  # a muted link: nothing arrives, as Blender evaluates it
+            return Input(me.name, me.type, _zero(me.type))
+        return self.output(links[0].from_socket, path, me, depth + 1)
+
+    def output(self, out, path: tuple, into: Input, depth: int) -> Input:
+        """The value of output socket `out` as seen by input `into`."""
+        node = out.node
+        if node.bl_idname == "NodeReroute":
+            return self.source(node.inputs[0], path, depth)
+        if node.mute:
+            for link in node.internal_links:
+                if link.to_socket == out:
+                    inner = self.source(link.from_socket, path, depth)
+                    return Input(into.name, into.type, inner.value, inner.link) if inner.link else \
+                        Input(into.name, into.type, _convert_const(inner.value, inner.type, into.type))
+            return Input(into.name, into.type, _zero(into.type))
+        if node.bl_idname in _GROUP_KINDS:
+            tree = node.node_tree
+            inner_out = _group_output(tree) if tree is not None else None
+            if inner_out is None:
+                return Input(into.name, into.type, _zero(into.type))
+            socket = next((s for s in inner_out.inputs if s.identifier == out.identifier), None)
+            if socket is None:
+                return Input(into.name, into.type, _zero(into.type))
+            inner = self.source(socket, path + (node,), depth)
+            return Input(into.name, into.type, inner.value, inner.link) if inner.link else \
+                Input(into.name, into.type, _convert_const(inner.value, inner.type, into.type))
+        if node.bl_idname == "NodeGroupInput":
+            if not path:
+                return Input(into.name, into.type, _zero(into.type))
+            group = path[-1]
+            socket = next((s for s in group.inputs if s.identifier == out.identifier), None)
+            if socket is None:
+                return Input(into.name, into.type, _zero(into.type))
+            inner = self.source(socket, path[:-1], depth)
+            return Input(into.name, into.type, inner.value, inner.link) if inner.link else \
+                Input(into.name, into.type, _convert_const(inner.value, inner.type, into.type))
+        i = self.add(node, path, depth)
+        return Input(into.name, into.type, into.value, Link(i, out.identifier, socket_type(out)))
+
+    def add(self, node, path: tuple, depth: int) -> int:
+        key = (tuple(g.name for g in path), node.name)
+        if key in self.index:
+            return self.index[key]
+        self.index[key] = -1  # a cycle would come back here: Blender's trees have none
+        inputs = tuple(self.source(s, path, depth) for s in node.inputs)
+        label = "/".join(key[0] + (node.name,))
+        outputs = tuple((s.identifier, socket_type(s)) for s in node.outputs)
+        self.nodes.append(Node(node.bl_idname, label, _props(node, path), inputs, outputs))
+        self.index[key] = len(self.nodes) - 1
+        return self.index[key]
+
+
+def _group_output(tree):
+    outs = [n for n in tree.nodes if n.bl_idname == "NodeGroupOutput"]
+    return next((n for n in outs if getattr(n, "is_active_output", False)), outs[0] if outs else None)
+
+
+def _zero(kind: str):
+    return (0.0, 0.0, 0.0) if kind in ("vector", "rgba") else 0.0
+
+
+def _convert_const(value, src: str, dst: str):
+    """A constant passed through a muted node or a group socket of another type (the core
+    converts linked values; constants are converted here, as plain data)."""
+    out = convert(value, src, dst)
+    try:
+        return tuple(float(v) for v in out)
+    except TypeError:
+        return float(out)
+
+
+def export_graph(sockets: dict, warn=None) -> Graph:
+    """Graph of the bpy input sockets `sockets` {output name: socket} (e.g. {"surface": the
+    Material Output's Surface input}); warn(text) hears what could not be followed."""
+    ex = _Export(warn)
+    outputs = tuple((name, ex.source(socket, ())) for name, socket in sockets.items() if socket is not None)
+    return Graph(tuple(ex.nodes), outputs)
