@@ -1,11 +1,12 @@
 """Vector and utility nodes against Cycles (tests/node_bake.py): Vector Math (every operation),
 Map Range (Float and Vector, every interpolation, clamped or not), Clamp, Mapping, Vector
-Rotate.
+Rotate, Vector Transform, Normal, Texture Coordinate.
 
 Inputs are affine fields of the plane's UV, a*u + b*v + c per component (`_field`), chosen so
 each mode meets negative, zero-crossing and fractional values, both signs of the dot products
 it branches on, and the guards (empty ranges, zero axes and scales, total internal reflection)
-at constant inputs."""
+at constant inputs. Nodes that read the object's or the camera's frame bake on planes moved,
+turned and scaled (node_bake.Placed), and with rays from the camera (view_from)."""
 import itertools
 
 import numpy as np
@@ -16,6 +17,11 @@ from ember.engine.nodes.vector_math import VALUE_OPERATIONS, VECTOR_OPERATIONS
 pytestmark = pytest.mark.blender
 
 import node_bake  # noqa: E402
+from node_bake import Placed  # noqa: E402
+
+# An object transform with rotation about every axis, non-uniform scale and an offset.
+TURNED = dict(location=(0.3, 0.5, -0.4), rotation=(0.4, -0.7, 1.1), scale=(1.3, 0.6, 0.9))
+
 
 def _uv(nt):
     """The Separate XYZ of the UV, one per material."""
@@ -230,6 +236,74 @@ def test_mapping_and_vector_rotate_match_cycles():
     _check(node_bake.bake(cases), len(cases))
 
 
+SPACES = ("WORLD", "OBJECT", "CAMERA")
+
+
+def test_vector_transform_matches_cycles():
+    """Every type between every pair of spaces, on a plane turned and scaled non-uniformly (the
+    object's frame is then neither orthonormal nor the world's), and the camera off-axis."""
+    cases = {}
+    for kind, source, target in itertools.product(("POINT", "VECTOR", "NORMAL"), SPACES, SPACES):
+        props = {"vector_type": kind, "convert_from": source, "convert_to": target}
+        cases[f"{kind}_{source}_{target}"] = Placed(_node("ShaderNodeVectorTransform", "Vector", props,
+                                                          {"Vector": A}), **TURNED)
+    _check(node_bake.bake(cases), len(cases))
+
+
+def test_normal_node_matches_cycles():
+    cases = {}
+    for direction in ((0.0, 0.0, 1.0), (0.6, -1.5, 0.4)):
+        for output in ("Normal", "Dot"):
+            def build(nt, direction=direction, output=output):
+                n = nt.nodes.new("ShaderNodeNormal")
+                n.outputs["Normal"].default_value = direction
+                nt.links.new(_field(nt, *A), n.inputs["Normal"])
+                return n.outputs[output]
+            cases[f"{output}_{direction}"] = build
+    _check(node_bake.bake(cases), len(cases))
+
+
+# Reflection first: its plane is nearest the camera, whose rays then meet it at the widest spread.
+TEXCOORD_OUTPUTS = ("Reflection", "Generated", "Normal", "UV", "Object", "Camera", "Window")
+
+
+def _texcoord(output: str, instancer: bool = False, other=None):
+    def build(nt):
+        import bpy
+        t = nt.nodes.new("ShaderNodeTexCoord")
+        t.from_instancer = instancer
+        if other is not None:  # an empty elsewhere, turned and scaled, as the Object output's frame
+            empty = bpy.data.objects.new("frame", None)
+            bpy.context.scene.collection.objects.link(empty)
+            empty.location, empty.rotation_euler, empty.scale = other
+            t.object = empty
+        return t.outputs[output]
+    return build
+
+
+@pytest.mark.parametrize("view_from", ["ABOVE_SURFACE", "ACTIVE_CAMERA"])
+def test_texture_coordinate_matches_cycles(view_from):
+    """Every output on a plain and on a turned plane; From Instancer on objects that are not
+    instances (zero); the Object output in another object's frame. With rays from the camera,
+    the incoming direction varies over the plane, and so does Reflection."""
+    cases = {}
+    for output in TEXCOORD_OUTPUTS:
+        cases[output] = _texcoord(output)
+        cases[f"{output}_turned"] = Placed(_texcoord(output), **TURNED)
+        if output == "Reflection":  # seen from the camera at grazing angles, and from behind
+            cases["Reflection_grazing"] = Placed(_texcoord(output), rotation=(-0.5, 0.0, 0.0))
+            cases["Reflection_behind"] = Placed(_texcoord(output), rotation=(3.0, 0.0, 0.0))
+    for output in ("Generated", "UV"):
+        cases[f"{output}_instancer"] = _texcoord(output, instancer=True)
+    frame = ((1.0, -2.0, 0.5), (0.3, 0.9, -0.6), (2.0, 0.5, 1.2))
+    cases["Object_in_frame"] = _texcoord("Object", other=frame)
+    cases["Object_in_frame_turned"] = Placed(_texcoord("Object", other=frame), **TURNED)
+    results = node_bake.bake(cases, view_from=view_from)
+    _check(results, len(cases))
+    if view_from == "ACTIVE_CAMERA":  # the camera's rays do meet the plane from many directions
+        assert np.ptp(results["Reflection"][0], axis=0).max() > 0.1
+
+
 # Input identifiers by kind, True for triples: for the shape check below.
 _SOCKETS = {
     "ShaderNodeVectorMath": {"Vector": True, "Vector_001": True, "Vector_002": True, "Scale": False},
@@ -239,6 +313,7 @@ _SOCKETS = {
     "ShaderNodeClamp": {"Value": False, "Min": False, "Max": False},
     "ShaderNodeMapping": {"Vector": True, "Location": True, "Rotation": True, "Scale": True},
     "ShaderNodeVectorRotate": {"Vector": True, "Center": True, "Axis": True, "Rotation": True, "Angle": False},
+    "ShaderNodeNormal": {"Normal": True},
 }
 _MODES = {
     "ShaderNodeVectorMath": [{"operation": op} for op in list(VECTOR_OPERATIONS) + list(VALUE_OPERATIONS)],
@@ -247,6 +322,7 @@ _MODES = {
     "ShaderNodeClamp": [{"clamp_type": k} for k in ("MINMAX", "RANGE")],
     "ShaderNodeMapping": [{"vector_type": k} for k in MAPPING_TYPES],
     "ShaderNodeVectorRotate": [{"rotation_type": k, "invert": i} for k in ROTATE_TYPES for i in (False, True)],
+    "ShaderNodeNormal": [{"direction": (0.3, -0.8, 0.5)}],
 }
 
 

@@ -64,6 +64,8 @@ def _props(node, context) -> tuple:
         out["value"] = float(node.outputs[0].default_value)
     elif node.bl_idname == "ShaderNodeRGB":
         out["color"] = socket_value(node.outputs[0])
+    elif node.bl_idname == "ShaderNodeNormal":  # its direction is its output's own value
+        out["direction"] = socket_value(node.outputs[0])
     return tuple(sorted(out.items()))
 
 
