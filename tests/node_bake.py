@@ -30,9 +30,11 @@ SPACING = 3.0
 # Where in a texel Blender's baker puts its point: the centre, nudged by these fractions of a
 # texel in u and v (measured from a baked UV coordinate: the same at 16 to 128 texels).
 BAKE_OFFSET = (0.001, 0.002)
-# The bake scene's camera: off every axis, so that no camera-space component is trivially 0.
+# The bake scene's camera: off every axis, so that no camera-space component is trivially 0,
+# and scaled, which Cycles' camera space ignores.
 CAMERA_LOCATION = (2.0, -7.0, 5.0)
 CAMERA_ROTATION = (0.9, 0.15, 0.35)
+CAMERA_SCALE = (2.0, 0.5, 3.0)
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,7 @@ def _plane(k: int, case):
 def _camera():
     bpy.ops.object.camera_add(location=CAMERA_LOCATION, rotation=CAMERA_ROTATION)
     camera = bpy.context.active_object
+    camera.scale = CAMERA_SCALE
     bpy.context.scene.camera = camera
     return camera
 
