@@ -9,7 +9,9 @@ zero-crossing, > 1 and (for colours) every hue ordering of the channels; factors
 import numpy as np
 import pytest
 
+from ember.engine.blender.export_nodes import PROPS
 from ember.engine.nodes import color as color_nodes
+from ember.engine.nodes.curves import blender_curve, colorband
 from ember.engine.nodes.color import BLENDS
 from ember.engine.nodes.graph import Node
 
@@ -169,8 +171,10 @@ def test_mix_float_and_vector_match_cycles():
 
 # Colour Ramp -----------------------------------------------------------------------------
 
+# Stops whose hues (0.01, 0.38, 0.65, 0.13) are nowhere half a turn apart, where Near and Far
+# would be decided by float rounding.
 RAMP_STOPS = ((0.12, (0.9, 0.1, 0.05, 1.0)), (0.35, (0.1, 0.8, 0.3, 0.2)), (0.62, (0.2, 0.3, 1.0, 0.7)),
-              (0.88, (1.0, 0.9, 0.2, 0.4)))
+              (0.88, (1.0, 0.8, 0.2, 0.4)))
 
 
 def _ramp(interpolation, color_mode="RGB", hue="NEAR", output="Color"):
@@ -433,7 +437,9 @@ def test_constant_inputs_match_cycles():
     cases["mix_float"] = _mix_data("FLOAT")
     cases["mix_vector"] = _mix_data("VECTOR")
     cases["mix_vector_non_uniform"] = _mix_data("VECTOR", "NON_UNIFORM")
-    cases["ramp"] = _node("ShaderNodeValToRGB", "Color", Fac=0.47)
+    for interpolation, mode, hue in _ramp_modes():
+        for fac in (-0.1, 0.34, 0.6205, 0.95):  # 0.6205: just past a stop, before the table's step
+            cases[f"ramp_{interpolation}_{mode}_{hue}_{fac}"] = _ramp_const(interpolation, mode, hue, fac)
     cases["rgb_curves"] = _const_curves("ShaderNodeRGBCurve", "Color", Fac=0.7, Color=(1.3, 0.4, -0.2, 1.0))
     cases["vector_curves"] = _const_curves("ShaderNodeVectorCurve", "Vector", Vector=(0.3, -0.7, 1.4))
     cases["float_curve"] = _const_curves("ShaderNodeFloatCurve", "Value", Factor=0.9, Value=1.6)
@@ -450,6 +456,19 @@ def test_constant_inputs_match_cycles():
         cases[f"combine_{mode}"] = _combine_const(mode)
         cases[f"separate_{mode}"] = _separate_const(mode)
     _check(cases)
+
+
+def _ramp_const(interpolation, mode, hue, fac):
+    shaped = _ramp(interpolation, mode, hue)
+
+    def build(nt):
+        n = shaped(nt).node
+        for link in list(nt.links):
+            if link.to_node == n:
+                nt.links.remove(link)
+        n.inputs["Fac"].default_value = fac
+        return n.outputs["Color"]
+    return build
 
 
 def _combine_const(mode):
@@ -471,3 +490,45 @@ def _separate_const(mode):
             nt.links.new(n.outputs[name], comb.inputs[k])
         return comb.outputs[0]
     return build
+
+
+# Blender's own evaluation, which folds constant inputs: Ember's against bpy's, point by point.
+
+def _ramp_modes():
+    for interpolation in ("CONSTANT", "LINEAR", "EASE", "B_SPLINE", "CARDINAL"):
+        yield interpolation, "RGB", "NEAR"
+    for mode in ("HSV", "HSL"):
+        for hue in ("NEAR", "FAR", "CW", "CCW"):
+            yield "LINEAR", mode, hue
+
+
+def test_colorband_is_blenders_ramp_evaluation():
+    import bpy
+    nt = bpy.data.materials.new("colorband").node_tree
+    x = np.concatenate([np.linspace(-0.3, 1.3, 1601), [p for p, _ in RAMP_STOPS]])
+    for interpolation, mode, hue in _ramp_modes():
+        for stops in (RAMP_STOPS, RAMP_STOPS[1:2], ((0.3, (0.2, 0.4, 0.9, 1.0)), (0.3, (0.9, 0.1, 0.2, 0.5)),
+                                                    (0.7, (0.5, 0.5, 0.5, 1.0)))):
+            build = _ramp(interpolation, mode, hue)
+            n = build(nt).node
+            ramp = n.color_ramp
+            while len(ramp.elements) > len(stops):
+                ramp.elements.remove(ramp.elements[-1])
+            for e, (p, c) in zip(ramp.elements, stops):
+                e.position, e.color = p, c
+            expected = np.array([ramp.evaluate(float(v)) for v in x])
+            got = colorband(dict(PROPS["color_ramp"](ramp, ())), x)
+            np.testing.assert_allclose(got, expected, atol=2e-6, err_msg=f"{interpolation} {mode} {hue} {len(stops)}")
+
+
+def test_curve_samples_are_blenders_curve_evaluation():
+    import bpy
+    nt = bpy.data.materials.new("curves").node_tree
+    x = np.linspace(-3.0, 3.0, 2401)
+    for build in (_rgb_curves("EXTRAPOLATED"), _rgb_curves("HORIZONTAL"), _vector_curves("EXTRAPOLATED"),
+                  _vector_curves("HORIZONTAL"), _float_curve("EXTRAPOLATED"), _float_curve("HORIZONTAL")):
+        mapping = build(nt).node.mapping
+        exported = dict(PROPS["mapping"](mapping, ()))
+        for curve, samples in zip(mapping.curves, exported["curves"]):
+            expected = np.array([mapping.evaluate(curve, float(v)) for v in x])
+            np.testing.assert_allclose(blender_curve(samples, x), expected, atol=2e-6)

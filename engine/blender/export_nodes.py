@@ -104,7 +104,26 @@ def _curve_mapping(mapping, context):
             rows.append(tuple(float(mapping.evaluate(curves[k], c)) for k in range(3)))
     else:
         rows = [tuple(float(mapping.evaluate(curve, float(x))) for curve in curves) for x in xs]
-    return (("extrapolate", mapping.extend == "EXTRAPOLATED"), ("range", (lo, hi)), ("table", tuple(rows)))
+    return (("extrapolate", mapping.extend == "EXTRAPOLATED"), ("range", (lo, hi)), ("table", tuple(rows)),
+            ("curves", tuple(_curve_samples(mapping, curve) for curve in curves)))
+
+
+def _curve_samples(mapping, curve):
+    """One curve as Blender evaluates it (BKE_curvemap_evaluateF), for constant inputs, which
+    Blender folds with its own evaluation: linear between its CM_TABLE + 1 = 257 table knots,
+    evenly spaced over the clipping range widened to the points, and a line beyond each end
+    (the extrapolated slope, or flat). Returns (x0, x1, knot values, (a, b) below x0,
+    (a, b) above x1), a line being a + b x, fitted through two evaluations past the end."""
+    x0 = min(float(mapping.clip_min_x), float(curve.points[0].location[0]))
+    x1 = max(float(mapping.clip_max_x), float(curve.points[-1].location[0]))
+    xs = np.float32(x0) + np.arange(257, dtype=np.float32) * np.float32((x1 - x0) / 256.0)
+    knots = tuple(float(mapping.evaluate(curve, float(x))) for x in xs)
+
+    def line(xa, xb):
+        ya, yb = mapping.evaluate(curve, xa), mapping.evaluate(curve, xb)
+        slope = (yb - ya) / (xb - xa)
+        return (ya - slope * xa, slope)
+    return (x0, x1, knots, line(x0 - 2.0, x0 - 1.0), line(x1 + 1.0, x1 + 2.0))
 
 
 def _object(ob, context):
