@@ -306,7 +306,8 @@ def test_colour_adjustments_match_cycles():
     cases["invert"] = _node("ShaderNodeInvert", "Color", Fac=_sweep(1.0, 1.0, -0.5), Color=A)
     cases["gamma_sweep"] = _node("ShaderNodeGamma", "Color", Color=A, Gamma=_sweep(0.0, 4.0, -1.0))
     cases["gamma_zero"] = _node("ShaderNodeGamma", "Color", Color=A, Gamma=0.0)
-    cases["gamma_2.2"] = _node("ShaderNodeGamma", "Color", Color=("triple", ((1.5, 0.0, 0.0), (0.0, 3.0, 0.01), (1.0, 1.0, -0.2))), Gamma=2.2)
+    ramps = ("triple", ((1.5, 0.0, 0.0), (0.0, 3.0, 0.01), (1.0, 1.0, -0.2)))
+    cases["gamma_2.2"] = _node("ShaderNodeGamma", "Color", Color=ramps, Gamma=2.2)
     cases["bright_contrast"] = _node("ShaderNodeBrightContrast", "Color", Color=A, Bright=_sweep(1.0, 0.0, -0.5),
                                      Contrast=_sweep(0.0, 2.0, -1.0))
     cases["rgb_to_bw"] = _node("ShaderNodeRGBToBW", "Val", Color=A)
@@ -449,7 +450,8 @@ def test_constant_inputs_match_cycles():
     cases["gamma"] = _node("ShaderNodeGamma", "Color", Color=CONST_A, Gamma=1.7)
     cases["bright_contrast"] = _node("ShaderNodeBrightContrast", "Color", Color=CONST_A, Bright=0.1, Contrast=0.4)
     cases["rgb_to_bw"] = _node("ShaderNodeRGBToBW", "Val", Color=CONST_A)
-    cases["blackbody"] = _node("ShaderNodeBlackbody", "Color", Temperature=2700.0)
+    for kelvin in (799.0, 800.0, 965.0, 1167.0, 1449.0, 1902.0, 2700.0, 3315.0, 6365.0, 11999.0, 12000.0):
+        cases[f"blackbody_{kelvin}"] = _node("ShaderNodeBlackbody", "Color", Temperature=kelvin)  # the fit's bands
     cases["wavelength"] = _node("ShaderNodeWavelength", "Color", Wavelength=555.0)
     cases["light_falloff"] = _node("ShaderNodeLightFalloff", "Linear", Strength=3.0, Smooth=0.4)
     for mode in ("RGB", "HSV", "HSL"):

@@ -181,7 +181,7 @@ def _lerp(t, a, b):
     return a * (1.0 - t) + b * t
 
 
-@node("ShaderNodeMix", "Converter")
+@node("ShaderNodeMix", "Utilities")  # Utilities > Math, and Color as Mix Color
 def mix(node, inputs, state):
     """Mix (svm/mix.h): Float and Vector blend linearly (Vector by a uniform or per-component
     factor), Color by the blend mode, with the factor clamped first if asked and the colour
@@ -204,7 +204,7 @@ def mix(node, inputs, state):
     return {}
 
 
-@node("ShaderNodeMixRGB", "Converter")
+@node("ShaderNodeMixRGB", "Color")  # legacy: in no menu, still in old files
 def mix_rgb(node, inputs, state):
     """The legacy Mix RGB (svm/mix.h svm_node_mix): its factor is always clamped to [0, 1]
     (svm_mix_clamped_factor); Clamp clamps the result. Alpha is not used in Cycles."""
@@ -251,7 +251,7 @@ def bright_contrast(node, inputs, state):
     return {"Color": np.maximum(out, 0.0)}
 
 
-@node("ShaderNodeRGBToBW", "Converter")
+@node("ShaderNodeRGBToBW", "Color")
 def rgb_to_bw(node, inputs, state):
     """Cycles compiles it as the colour -> float conversion (svm/convert.h): luminance."""
     return {"Val": scalar(triple(inputs["Color"]) @ LUMINANCE)}
@@ -261,14 +261,14 @@ _TO_RGB = {"RGB": triple, "HSV": hsv_to_rgb, "HSL": hsl_to_rgb}
 _FROM_RGB = {"RGB": triple, "HSV": rgb_to_hsv, "HSL": rgb_to_hsl}
 
 
-@node("ShaderNodeSeparateColor", "Converter")
+@node("ShaderNodeSeparateColor", "Color")
 def separate_color(node, inputs, state):
     """svm/color_util.h svm_separate_color: the colour's components in the mode's model."""
     x, y, z = components(_FROM_RGB[node.prop("mode", "RGB")](inputs["Color"]))
     return {"Red": scalar(x), "Green": scalar(y), "Blue": scalar(z)}
 
 
-@node("ShaderNodeCombineColor", "Converter")
+@node("ShaderNodeCombineColor", "Color")
 def combine_color(node, inputs, state):
     """svm/color_util.h svm_combine_color: three components in the mode's model -> RGB."""
     return {"Color": _TO_RGB[node.prop("mode", "RGB")](stack(inputs["Red"], inputs["Green"], inputs["Blue"]))}
@@ -319,7 +319,7 @@ def blackbody_rec709(temperature):
     return np.where(t3 >= 12000.0, _BLACKBODY_HOT, np.where(t3 < 800.0, _BLACKBODY_COLD, fit))
 
 
-@node("ShaderNodeBlackbody", "Converter")
+@node("ShaderNodeBlackbody", "Color")
 def blackbody(node, inputs, state):
     """svm/blackbody.h: the Rec.709 fit, clamped to 0. The scene-linear space is Rec.709 in
     Blender's default colour management, so Cycles' rec709_to_rgb is the identity (checked
@@ -376,7 +376,7 @@ def wavelength_xyz(nm):
     return np.where(inside[..., None], xyz, 0.0)
 
 
-@node("ShaderNodeWavelength", "Converter")
+@node("ShaderNodeWavelength", "Color")
 def wavelength(node, inputs, state):
     """svm/wavelength.h: XYZ -> scene linear, scaled by 1 / 2.52 (Cycles' empirical scale that
     keeps every component <= 1), negatives clamped to 0."""

@@ -124,7 +124,7 @@ def colorband(ramp: dict, x):
     return np.broadcast_to(col[0], out.shape).copy() if n == 1 else out  # one stop: its colour
 
 
-@node("ShaderNodeValToRGB", "Converter")
+@node("ShaderNodeValToRGB", "Color")
 def color_ramp(node, inputs, state):
     """svm/ramp.h svm_node_rgb_ramp: the RGBA table looked up at Fac, linearly unless the
     ramp's interpolation is Constant; never extrapolated. A constant Fac: Blender's evaluation."""
@@ -174,7 +174,7 @@ def vector_curves(node, inputs, state):
     return {"Vector": _curves(node, inputs, state, "Vector")}
 
 
-@node("ShaderNodeFloatCurve", "Converter")
+@node("ShaderNodeFloatCurve", "Utilities")
 def float_curve(node, inputs, state):
     """svm/ramp.h svm_node_curve: the value looked up in the table at its position relative to
     the curve's range, mixed with the input by Factor."""
