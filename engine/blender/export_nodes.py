@@ -12,6 +12,7 @@ colour ramps, curves, images, objects).
 from __future__ import annotations
 
 import bpy
+import numpy as np
 
 from ..nodes.base import convert
 from ..nodes.graph import Graph, Input, Link, Node
@@ -69,9 +70,62 @@ def _props(node, context) -> tuple:
     return tuple(sorted(out.items()))
 
 
+# Cycles' ramp and curve tables: the kernel interpolates these samples, not the ramp or curve
+# itself (engine/nodes/curves.py). Cycles' RAMP_TABLE_SIZE is 256, and its sync samples one
+# more: 257 entries at i / 256 (inferred from the bake: a Constant ramp's steps fall at
+# multiples of 1/256 wherever its stops are).
+RAMP_TABLE_SIZE = 257
+
+
 def _color_ramp(ramp, context):
-    return (ramp.interpolation, ramp.color_mode, ramp.hue_interpolation,
-            tuple((float(e.position), tuple(float(c) for c in e.color)) for e in ramp.elements))
+    """The ramp's settings and stops, and `table`: RGBA at RAMP_TABLE_SIZE even positions over
+    [0, 1] from Blender's own evaluation, as Cycles' sync samples it."""
+    positions = np.arange(RAMP_TABLE_SIZE, dtype=np.float32) / np.float32(RAMP_TABLE_SIZE - 1)
+    return (("interpolation", ramp.interpolation), ("color_mode", ramp.color_mode),
+            ("hue_interpolation", ramp.hue_interpolation),
+            ("elements", tuple((float(e.position), tuple(float(c) for c in e.color)) for e in ramp.elements)),
+            ("table", tuple(tuple(float(c) for c in ramp.evaluate(float(x))) for x in positions)))
+
+
+def _curve_mapping(mapping, context):
+    """A curve mapping as Cycles' sync tables it (intern/cycles/blender/util.h
+    curvemapping_*_to_array): `range` (min_x, max_x) from the first and last point of each
+    curve, `table` each curve evaluated at RAMP_TABLE_SIZE even positions over that range (4
+    curves, RGB Curves: R, G and B applied after the combined curve C; 3, Vector Curves: X, Y,
+    Z; 1, Float Curve: a single column), `extrapolate` whether the ends extend linearly."""
+    curves = list(mapping.curves)
+    lo = min(float(c.points[0].location[0]) for c in curves)
+    hi = max(float(c.points[-1].location[0]) for c in curves)
+    mapping.update()
+    step = np.arange(RAMP_TABLE_SIZE, dtype=np.float32) / np.float32(RAMP_TABLE_SIZE - 1)
+    xs = (np.float32(lo) + step * (np.float32(hi) - np.float32(lo))).astype(np.float32)
+    if len(curves) == 4:
+        rows = []
+        for x in xs:
+            c = mapping.evaluate(curves[3], float(x))
+            rows.append(tuple(float(mapping.evaluate(curves[k], c)) for k in range(3)))
+    else:
+        rows = [tuple(float(mapping.evaluate(curve, float(x))) for curve in curves) for x in xs]
+    return (("extrapolate", mapping.extend == "EXTRAPOLATED"), ("range", (lo, hi)), ("table", tuple(rows)),
+            ("curves", tuple(_curve_samples(mapping, curve) for curve in curves)))
+
+
+def _curve_samples(mapping, curve):
+    """One curve as Blender evaluates it (BKE_curvemap_evaluateF), for constant inputs, which
+    Blender folds with its own evaluation: linear between its CM_TABLE + 1 = 257 table knots,
+    evenly spaced over the clipping range widened to the points, and a line beyond each end
+    (the extrapolated slope, or flat). Returns (x0, x1, knot values, (a, b) below x0,
+    (a, b) above x1), a line being a + b x, fitted through two evaluations past the end."""
+    x0 = min(float(mapping.clip_min_x), float(curve.points[0].location[0]))
+    x1 = max(float(mapping.clip_max_x), float(curve.points[-1].location[0]))
+    xs = np.float32(x0) + np.arange(257, dtype=np.float32) * np.float32((x1 - x0) / 256.0)
+    knots = tuple(float(mapping.evaluate(curve, float(x))) for x in xs)
+
+    def line(xa, xb):
+        ya, yb = mapping.evaluate(curve, xa), mapping.evaluate(curve, xb)
+        slope = (yb - ya) / (xb - xa)
+        return (ya - slope * xa, slope)
+    return (x0, x1, knots, line(x0 - 2.0, x0 - 1.0), line(x1 + 1.0, x1 + 2.0))
 
 
 def _object(ob, context):
@@ -82,7 +136,7 @@ def _object(ob, context):
 
 
 # Pointer properties by name -> exporter(value, context) of plain data.
-PROPS = {"color_ramp": _color_ramp, "object": _object}
+PROPS = {"color_ramp": _color_ramp, "mapping": _curve_mapping, "object": _object}
 
 
 class _Export:
