@@ -294,7 +294,7 @@ def baked():
     return results
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+@pytest.mark.parametrize("name", sorted(CASES), ids=lambda name: name.replace(" ", "_"))
 def test_texture_matches_cycles(baked, name):
     cycles, ember = baked[name]
     assert np.std(cycles) > 0.0, "a case should vary over the plane, or between channels"
