@@ -31,10 +31,12 @@ def _rot(x, k: int, out, tmp):
     return out
 
 
-def mix(a, b, c) -> None:
-    """lookup3's mix, in place on uint32 arrays a, b, c of one shape."""
+def mix(a, b, c, t=None, u=None) -> None:
+    """lookup3's mix, in place on uint32 arrays a, b, c of one shape (t, u: scratch arrays of
+    that shape, allocated if not given)."""
     with np.errstate(over="ignore"):
-        t, u = np.empty_like(a), np.empty_like(a)
+        t = np.empty_like(a) if t is None else t
+        u = np.empty_like(a) if u is None else u
         a -= c; a ^= _rot(c, 4, t, u); c += b  # noqa: E702 (lookup3's rows, kept as rows)
         b -= a; b ^= _rot(a, 6, t, u); a += c  # noqa: E702
         c -= b; c ^= _rot(b, 8, t, u); b += a  # noqa: E702
@@ -43,10 +45,12 @@ def mix(a, b, c) -> None:
         c -= b; c ^= _rot(b, 4, t, u); b += a  # noqa: E702
 
 
-def final(a, b, c):
-    """lookup3's final, in place on uint32 arrays a, b, c of one shape; returns c."""
+def final(a, b, c, t=None, u=None):
+    """lookup3's final, in place on uint32 arrays a, b, c of one shape; returns c (t, u:
+    scratch arrays of that shape, allocated if not given)."""
     with np.errstate(over="ignore"):
-        t, u = np.empty_like(a), np.empty_like(a)
+        t = np.empty_like(a) if t is None else t
+        u = np.empty_like(a) if u is None else u
         c ^= b; c -= _rot(b, 14, t, u)  # noqa: E702
         a ^= c; a -= _rot(c, 11, t, u)  # noqa: E702
         b ^= a; b -= _rot(a, 25, t, u)  # noqa: E702

@@ -13,6 +13,8 @@ float64 of shape S.
 """
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from .hash import final, mix
@@ -50,23 +52,14 @@ def _gradient_tables():
 
 
 def _lattice(d: int, g: np.ndarray) -> dict:
-    """What perlin() looks up for dimension d, with corner c of the 2^d lattice points around
-    a point at offset (c >> k) & 1 along axis k:
-    keys: per axis, the corner offsets as uint32, plus lookup3's seed on the axes it seeds
-      (x, y, z start a, b, c at seed + key); in 4D the x, y, z keys of the 8 corners of
-      w = 0 only (lookup3 mixes x, y, z before it adds w, so 4D mixes 8 corners, not 16);
-    offset: per axis, the corner offsets as float64;
-    gradient: per axis, the gradient coefficient of each hash value (the hash's low bits)."""
-    bits = np.array([[(c >> k) & 1 for k in range(d)] for c in range(1 << d)])
-    seed = int(hash_seed(d))
-    mixed = bits[: 1 << min(d, 3)]
-    keys = tuple(((mixed[:, k] + seed) & 0xFFFFFFFF).astype(np.uint32) for k in range(min(d, 3)))
-    return {"keys": keys, "offset": tuple(bits[:, k].astype(np.float64) for k in range(d)),
-            "gradient": tuple(np.ascontiguousarray(g[:, k]) for k in range(d)), "mask": np.uint32(len(g) - 1)}
+    """What perlin() looks up for dimension d: per axis, the gradient coefficient of each hash
+    value (its low bits, `mask`), contiguous for np.take."""
+    return {"gradient": tuple(np.ascontiguousarray(g[:, k]) for k in range(d)), "mask": np.uint32(len(g) - 1)}
 
 
 _LATTICE = {d: _lattice(d, g) for d, g in _gradient_tables().items()}
-_W = np.array([0, 1], np.uint32)
+# Points per chunk: 2^15 corner values (2^d per point) keep a chunk's arrays in cache.
+CORNERS = 1 << 15
 
 
 def fade(t):
@@ -74,77 +67,130 @@ def fade(t):
     return t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
 
 
-def perlin(coords) -> np.ndarray:
+class _Workspace:
+    """The per-corner arrays of perlin() for up to n points in d dimensions, kept per thread
+    (workspace()) and reused by every call: large temporaries allocated per operation cost
+    more (page faults of fresh memory) than the arithmetic on them."""
+
+    def __init__(self, d: int, n: int):
+        m = n << d
+        self.u32 = [np.empty(m, np.uint32) for _ in range(5)]  # a, b, c and two scratch
+        self.index = np.empty(m, np.intp)
+        self.f64 = [np.empty(m) for _ in range(2)]  # the gradients, a term
+
+    def arrays(self, n: int, d: int):
+        """(uint32 a, b, c, scratch, scratch), intp index, (float64 gradients, term), each
+        shaped (2^d, n)."""
+        m = n << d
+        shape = (1 << d, n)
+        return ([u[:m].reshape(shape) for u in self.u32], self.index[:m].reshape(shape),
+                [f[:m].reshape(shape) for f in self.f64])
+
+
+_LOCAL = threading.local()
+
+
+def workspace(d: int, n: int) -> _Workspace:
+    """This thread's workspace for n points in d dimensions (grown when too small)."""
+    spaces = _LOCAL.__dict__.setdefault("spaces", {})
+    work = spaces.get(d)
+    if work is None or len(work.index) < n << d:
+        work = spaces[d] = _Workspace(d, n)
+    return work
+
+
+def _side(d: int, k: int, bit: int) -> tuple:
+    """Index of the corners on side `bit` (0 or 1) of lattice axis k in the corner arrays,
+    shaped (2,) * d + (n,) with axis 0 for lattice axis d - 1, ..., axis d - 1 for x."""
+    return (slice(None),) * (d - 1 - k) + (bit,)
+
+
+def perlin(coords, work: _Workspace | None = None) -> np.ndarray:
     """Perlin noise (perlin_1d .. perlin_4d) at float32 coordinates `coords` (1 to 4 arrays of
     one shape S), unscaled, float64 of shape S. All 2^d corners are hashed in one lookup3 pass
-    over arrays (2^d, *S)."""
+    over arrays (2^d, n) in `work`'s memory (where `work` is given, the result is a view
+    into it, valid until its next use).
+    Per axis a corner's key and offset take one of two values (cell or cell + 1, f or f - 1),
+    computed per point and spread over the corners."""
     d = len(coords)
     shape = np.shape(coords[0])
-    lift = (slice(None),) + (None,) * len(shape)  # a per-corner vector against shape S
+    coords = [np.ravel(x) for x in coords]
+    n = coords[0].size
+    own = work is None
+    work = workspace(d, n) if own else work
+    corners = (2,) * d + (n,)
+    (a, b, c, t, u), index, (g, term) = work.arrays(n, d)
     lattice = _LATTICE[d]
     cells, fracs = [], []
     for x in coords:
         cell = np.floor(x)
         fracs.append((x - cell).astype(np.float64))  # exact: x and floor(x) share their leading bits
         cells.append(cell.astype(np.int32).view(np.uint32))
+    seed = hash_seed(d)
     with np.errstate(over="ignore"):
-        keys = [cell + key[lift] for cell, key in zip(cells, lattice["keys"])]
-        if d == 1:
-            a = keys[0]
-            b, c = np.full_like(a, hash_seed(1)), np.full_like(a, hash_seed(1))
-        elif d == 2:
-            (a, b), c = keys, np.full_like(keys[0], hash_seed(2))
-        elif d == 3:
-            a, b, c = keys
-        else:  # mix the 8 (x, y, z) corners, then add w and w + 1: corners w = 0, then w = 1
-            a, b, c = keys
-            mix(a, b, c)
-            a = (a[None] + (cells[3] + _W[lift])[:, None]).reshape((16,) + shape)
-            b = np.concatenate([b, b])
-            c = np.concatenate([c, c])
-        h = final(a, b, c)
+        # lookup3 starts a, b, c at seed + key for the keys x, y, z (seed alone past d keys);
+        # 4D mixes the 8 (x, y, z) corners before it adds w, so it mixes 8, not 16.
+        mixed = min(d, 3)
+        keys = [v[: 1 << mixed].reshape((2,) * mixed + (n,)) for v in (a, b, c)]
+        for k in range(3):
+            if k < d:
+                low = cells[k] + seed
+                keys[k][_side(mixed, k, 0)] = low
+                keys[k][_side(mixed, k, 1)] = low + np.uint32(1)
+            else:
+                keys[k].fill(seed)
+        if d == 4:
+            mix(a[:8], b[:8], c[:8], t[:8], u[:8])
+            np.add(a[:8], cells[3] + np.uint32(1), out=a[8:])
+            a[:8] += cells[3]
+            b[8:], c[8:] = b[:8], c[:8]
+        h = final(a, b, c, t, u)
     h &= lattice["mask"]
-    index = h.astype(np.intp)  # take() on in-range intp indices is its fast path
-    g = None
+    np.copyto(index, h)  # take() on in-range intp indices is its fast path
     for k in range(d):
-        term = np.take(lattice["gradient"][k], index, mode="wrap")
-        term *= fracs[k] - lattice["offset"][k][lift]
-        g = term if g is None else np.add(g, term, out=g)
-    # Multilinear interpolation: corners reshaped so that axis k of the lattice is the
-    # (d - 1 - k)-th leading axis; x first, as Cycles' bi_mix / tri_mix / quad_mix.
-    g = g.reshape((2,) * d + shape)
+        into = g if k == 0 else term
+        np.take(lattice["gradient"][k], index, mode="wrap", out=into)
+        v = into.reshape(corners)
+        v[_side(d, k, 0)] *= fracs[k]
+        v[_side(d, k, 1)] *= fracs[k] - 1.0
+        if k:
+            g += term
+    # Multilinear interpolation, x first, as Cycles' bi_mix / tri_mix / quad_mix.
+    v = g.reshape(corners)
     for k in range(d):
-        lo, hi = g[(slice(None),) * (d - 1 - k) + (0,)], g[(slice(None),) * (d - 1 - k) + (1,)]
+        lo, hi = v[_side(d - k, 0, 0)], v[_side(d - k, 0, 1)]
         hi -= lo
         hi *= fade(fracs[k])
         hi += lo
-        g = hi
-    return g
+        v = hi
+    return v.reshape(shape).copy() if own else v.reshape(shape)
 
 
 def snoise(coords) -> np.ndarray:
     """Signed noise in about [-1, 1] (snoise_1d .. snoise_4d): the coordinates wrapped every
     100000 (nudged by a half where |p| >= 1e6, as Cycles does against float32 loss), Perlin
-    noise scaled per dimension. Long point arrays go through in chunks of 2^16 corner values,
+    noise scaled per dimension. Many points go through in chunks of CORNERS corner values,
     which keeps the corner arrays in cache."""
     d = len(coords)
+    shape = np.shape(coords[0])
     wrapped = []
     for x in coords:
+        x = np.ravel(x)
         if np.max(np.abs(x), initial=F32(0.0)) >= F32(100000.0):  # else fmod leaves x as it is
             big = np.abs(x) >= F32(1000000.0)
             x = np.fmod(x, F32(100000.0))
             if np.any(big):
                 x = x + np.where(big, F32(0.5), F32(0.0))
         wrapped.append(x)
-    chunk = 1 << (16 - d)
-    if wrapped[0].ndim != 1 or len(wrapped[0]) <= chunk:
-        return _SCALE[d] * perlin(wrapped)
-    out = np.empty(len(wrapped[0]))
-    for start in range(0, len(out), chunk):
+    n = wrapped[0].size
+    chunk = max(CORNERS >> d, 1)
+    work = workspace(d, min(n, chunk))
+    out = np.empty(n)
+    for start in range(0, n, chunk):
         part = slice(start, start + chunk)
-        out[part] = perlin([x[part] for x in wrapped])
+        out[part] = perlin([x[part] for x in wrapped], work)
     out *= _SCALE[d]
-    return out
+    return out.reshape(shape)
 
 
 def scaled(coords, factor) -> tuple:
@@ -286,16 +332,20 @@ def ridged_multi_fractal(coords, detail, roughness, lacunarity, offset_, gain):
     return value + np.zeros(np.shape(coords[0]))
 
 
+_FRACTALS = {
+    "FBM": lambda p, detail, roughness, lacunarity, offset_, gain, normalize: fbm(p, detail, roughness, lacunarity,
+                                                                                 normalize),
+    "MULTIFRACTAL": lambda p, detail, roughness, lacunarity, offset_, gain, normalize: multi_fractal(
+        p, detail, roughness, lacunarity),
+    "HETERO_TERRAIN": lambda p, detail, roughness, lacunarity, offset_, gain, normalize: hetero_terrain(
+        p, detail, roughness, lacunarity, offset_),
+    "HYBRID_MULTIFRACTAL": lambda p, detail, roughness, lacunarity, offset_, gain, normalize: hybrid_multi_fractal(
+        p, detail, roughness, lacunarity, offset_, gain),
+    "RIDGED_MULTIFRACTAL": lambda p, detail, roughness, lacunarity, offset_, gain, normalize: ridged_multi_fractal(
+        p, detail, roughness, lacunarity, offset_, gain),
+}
+
+
 def fractal(kind: str, coords, detail, roughness, lacunarity, offset_=0.0, gain=1.0, normalize=True):
     """The Noise Texture's fractal `kind` (Blender's noise_type identifier), as noise_select."""
-    if kind == "FBM":
-        return fbm(coords, detail, roughness, lacunarity, normalize)
-    if kind == "MULTIFRACTAL":
-        return multi_fractal(coords, detail, roughness, lacunarity)
-    if kind == "HETERO_TERRAIN":
-        return hetero_terrain(coords, detail, roughness, lacunarity, offset_)
-    if kind == "HYBRID_MULTIFRACTAL":
-        return hybrid_multi_fractal(coords, detail, roughness, lacunarity, offset_, gain)
-    if kind == "RIDGED_MULTIFRACTAL":
-        return ridged_multi_fractal(coords, detail, roughness, lacunarity, offset_, gain)
-    raise ValueError(f"unknown noise type {kind!r}")
+    return _FRACTALS[kind](coords, detail, roughness, lacunarity, offset_, gain, normalize)

@@ -3,10 +3,13 @@ Gradient, Checker, Magic, Wave and Brick (svm/noisetex.h, white_noise.h, gradien
 checker.h, magic.h, wave.h, brick.h).
 
 A texture whose Vector is unlinked reads the Generated coordinate (Cycles' LINK_TEXTURE_
-GENERATED), except White Noise, whose unlinked Vector is its socket value; the vector then
-goes through the node's texture mapping (texture_mapping.py). Coordinates are scaled in
-float32 as Cycles does, so the float32 roundings that decide a cell (a floor, an integer
-cast) are the kernel's; what follows a cell decision is float64.
+GENERATED), except White Noise, whose unlinked Vector is its socket value (Cycles gives that
+socket no default link); the vector then goes through the node's texture mapping
+(texture_mapping.py). The textures declare that they read Generated whether or not their
+Vector is linked (a NodeType's reads are per kind), so a texture is never folded to a
+constant. Coordinates are scaled in float32 as Cycles does, so the float32 roundings that
+decide a cell (a floor, an integer cast) are the kernel's; what follows a cell decision is
+float64, except Magic, whose folds amplify rounding and follow the kernel's float32 steps.
 """
 from __future__ import annotations
 
@@ -15,7 +18,7 @@ import numpy as np
 from . import texture_mapping
 from .base import components, node, scalar, stack, triple
 from .hash import hash_float, hash_float_to_float3
-from .noise import F32, fbm, fractal, offset, snoise
+from .noise import F32, fractal, offset, snoise
 
 _GENERATED = ("generated",)
 _DIMENSIONS = {"1D": 1, "2D": 2, "3D": 3, "4D": 4}
@@ -72,6 +75,9 @@ _SEEDS = {d: tuple(_seed_offset(d, float(s)) for s in range(d + 2)) for d in ran
 
 @node("ShaderNodeTexNoise", "Texture", reads=_GENERATED)
 def noise_texture(node, inputs, state):
+    """svm_node_tex_noise: detail clamped to [0, 15], roughness to >= 0; the point (and W)
+    scaled, distorted by snoise at seed offsets, then the fractal; the colour's green and blue
+    are the fractal at two more seed offsets."""
     dimensions = _DIMENSIONS[node.prop("noise_dimensions", "3D")]
     kind = node.prop("noise_type", "FBM")
     normalize = bool(node.prop("normalize", True))
@@ -236,7 +242,7 @@ def wave(node, p, distortion, detail, detail_scale, detail_roughness, phase):
     n = n + phase
     if np.any(distortion != 0.0):
         p = tuple(c * f32(detail_scale) for c in p)
-        n = n + distortion * (fbm(p, detail, detail_roughness, 2.0, True) * 2.0 - 1.0)
+        n = n + distortion * (fractal("FBM", p, detail, detail_roughness, 2.0) * 2.0 - 1.0)
     profile = node.prop("wave_profile", "SIN")
     if profile == "SIN":
         return 0.5 + 0.5 * np.sin(n - _PI_2)
