@@ -41,49 +41,44 @@ def _node(kind, props, inputs, outputs):
     return Node(kind, kind, tuple(sorted(props.items())), tuple(sockets), tuple(outputs))
 
 
+TEXTURE_OUTPUTS = (("Color", "rgba"), ("Fac", "value"))
+WAVE = {"Scale": 5.0, "Distortion": 0.0, "Detail": 2.0, "Detail Scale": 1.0, "Detail Roughness": 0.5,
+        "Phase Offset": 0.0}
+BRICK = {"Color1": (0.8, 0.8, 0.8), "Color2": (0.2, 0.2, 0.2), "Mortar": (0.0, 0.0, 0.0), "Scale": 5.0,
+         "Mortar Size": 0.02, "Mortar Smooth": 0.1, "Bias": 0.0, "Brick Width": 0.5, "Row Height": 0.25}
+
+
+def _noise(d, kind="FBM", **inputs):
+    return _node("ShaderNodeTexNoise", {"noise_dimensions": d, "noise_type": kind, "normalize": True},
+                 dict(NOISE_INPUTS, **inputs), (("Fac", "value"), ("Color", "rgba")))
+
+
 def cases():
     """(label, node, output read)."""
-    out = []
-    noise_outputs = (("Fac", "value"), ("Color", "rgba"))
-    for d in ("1D", "2D", "3D", "4D"):
-        out.append((f"noise {d} fBM detail 2", _node("ShaderNodeTexNoise", {"noise_dimensions": d, "noise_type": "FBM",
-                                                                             "normalize": True}, NOISE_INPUTS, noise_outputs), "Fac"))
-    for t in ("MULTIFRACTAL", "HYBRID_MULTIFRACTAL", "HETERO_TERRAIN", "RIDGED_MULTIFRACTAL"):
-        out.append((f"noise 3D {t} detail 2", _node("ShaderNodeTexNoise", {"noise_dimensions": "3D", "noise_type": t,
-                                                                            "normalize": True}, NOISE_INPUTS, noise_outputs), "Fac"))
-    out.append(("noise 3D fBM detail 0", _node("ShaderNodeTexNoise", {"noise_dimensions": "3D", "noise_type": "FBM",
-                                                                       "normalize": True}, dict(NOISE_INPUTS, Detail=0.0),
-                                                noise_outputs), "Fac"))
-    out.append(("noise 3D fBM detail 2 colour", _node("ShaderNodeTexNoise", {"noise_dimensions": "3D", "noise_type": "FBM",
-                                                                              "normalize": True}, NOISE_INPUTS, noise_outputs),
-                "Color"))
-    out.append(("noise 3D fBM detail 2 distorted", _node("ShaderNodeTexNoise", {"noise_dimensions": "3D", "noise_type": "FBM",
-                                                                                 "normalize": True},
-                                                          dict(NOISE_INPUTS, Distortion=0.5), noise_outputs), "Fac"))
-    for d in ("1D", "3D", "4D"):
-        out.append((f"white noise {d} colour", _node("ShaderNodeTexWhiteNoise", {"noise_dimensions": d}, {"W": 0.0},
-                                                     (("Value", "value"), ("Color", "rgba"))), "Color"))
-    for t in ("LINEAR", "SPHERICAL", "RADIAL"):
-        out.append((f"gradient {t}", _node("ShaderNodeTexGradient", {"gradient_type": t}, {},
-                                           (("Color", "rgba"), ("Fac", "value"))), "Fac"))
-    out.append(("checker", _node("ShaderNodeTexChecker", {}, {"Color1": (0.8, 0.8, 0.8), "Color2": (0.2, 0.2, 0.2),
-                                                               "Scale": 5.0}, (("Color", "rgba"), ("Fac", "value"))), "Color"))
-    for depth in (2, 10):
-        out.append((f"magic depth {depth}", _node("ShaderNodeTexMagic", {"turbulence_depth": depth},
-                                                  {"Scale": 5.0, "Distortion": 1.0}, (("Color", "rgba"), ("Fac", "value"))),
-                    "Color"))
-    wave = {"Scale": 5.0, "Distortion": 0.0, "Detail": 2.0, "Detail Scale": 1.0, "Detail Roughness": 0.5, "Phase Offset": 0.0}
+    out = [(f"noise {d} fBM detail 2", _noise(d), "Fac") for d in ("1D", "2D", "3D", "4D")]
+    out += [(f"noise 3D {t} detail 2", _noise("3D", t), "Fac")
+            for t in ("MULTIFRACTAL", "HYBRID_MULTIFRACTAL", "HETERO_TERRAIN", "RIDGED_MULTIFRACTAL")]
+    out += [("noise 3D fBM detail 0", _noise("3D", Detail=0.0), "Fac"),
+            ("noise 3D fBM detail 2 colour", _noise("3D"), "Color"),
+            ("noise 3D fBM detail 2 distorted", _noise("3D", Distortion=0.5), "Fac")]
+    out += [(f"white noise {d} colour", _node("ShaderNodeTexWhiteNoise", {"noise_dimensions": d}, {"W": 0.0},
+                                              (("Value", "value"), ("Color", "rgba"))), "Color")
+            for d in ("1D", "3D", "4D")]
+    out += [(f"gradient {t}", _node("ShaderNodeTexGradient", {"gradient_type": t}, {}, TEXTURE_OUTPUTS), "Fac")
+            for t in ("LINEAR", "SPHERICAL", "RADIAL")]
+    out.append(("checker", _node("ShaderNodeTexChecker", {}, {k: BRICK[k] for k in ("Color1", "Color2", "Scale")},
+                                 TEXTURE_OUTPUTS), "Color"))
+    out += [(f"magic depth {depth}", _node("ShaderNodeTexMagic", {"turbulence_depth": depth},
+                                           {"Scale": 5.0, "Distortion": 1.0}, TEXTURE_OUTPUTS), "Color")
+            for depth in (2, 10)]
     out.append(("wave bands sine", _node("ShaderNodeTexWave", {"wave_type": "BANDS", "bands_direction": "X",
-                                                               "wave_profile": "SIN"}, wave, (("Color", "rgba"), ("Fac", "value"))),
+                                                               "wave_profile": "SIN"}, WAVE, TEXTURE_OUTPUTS), "Fac"))
+    out.append(("wave rings distorted detail 2",
+                _node("ShaderNodeTexWave", {"wave_type": "RINGS", "rings_direction": "SPHERICAL",
+                                            "wave_profile": "SIN"}, dict(WAVE, Distortion=2.0), TEXTURE_OUTPUTS),
                 "Fac"))
-    out.append(("wave rings distorted detail 2", _node("ShaderNodeTexWave", {"wave_type": "RINGS", "rings_direction": "SPHERICAL",
-                                                                             "wave_profile": "SIN"}, dict(wave, Distortion=2.0),
-                                                       (("Color", "rgba"), ("Fac", "value"))), "Fac"))
-    brick = {"Color1": (0.8, 0.8, 0.8), "Color2": (0.2, 0.2, 0.2), "Mortar": (0.0, 0.0, 0.0), "Scale": 5.0,
-             "Mortar Size": 0.02, "Mortar Smooth": 0.1, "Bias": 0.0, "Brick Width": 0.5, "Row Height": 0.25}
     out.append(("brick", _node("ShaderNodeTexBrick", {"offset": 0.5, "offset_frequency": 2, "squash": 1.0,
-                                                      "squash_frequency": 2}, brick, (("Color", "rgba"), ("Fac", "value"))),
-                "Color"))
+                                                      "squash_frequency": 2}, BRICK, TEXTURE_OUTPUTS), "Color"))
     return out
 
 

@@ -2,14 +2,15 @@
 (tests/node_bake.py): every mode Blender offers, with scales that put many cells, bands,
 bricks and octaves across the plane, fractional details, distortion, the colour outputs, and
 the nodes' texture mapping. All cases bake in one call; each is asserted on its own."""
-import math
-
 import numpy as np
 import pytest
 
 pytestmark = pytest.mark.blender
 
 import node_bake  # noqa: E402
+from ember.engine.nodes.graph import Input, Link, Node  # noqa: E402
+from ember.engine.nodes.registry import REGISTRY  # noqa: E402
+from ember.engine.nodes.textures import NODES  # noqa: E402
 
 SIZE = 64  # texels per side: 4096 points per case, so 99.9 % allows 4 disagreeing texels
 NOISE_TYPES = ("FBM", "MULTIFRACTAL", "HYBRID_MULTIFRACTAL", "HETERO_TERRAIN", "RIDGED_MULTIFRACTAL")
@@ -122,22 +123,26 @@ def noise_cases():
         cases[f"noise {d} FBM raw"] = _noise(d, "FBM", normalize=False, Detail=3.0, Roughness=0.7)
         cases[f"noise {d} FBM detail 0"] = _noise(d, "FBM", Detail=0.0, Scale=23.0)
         cases[f"noise {d} FBM detail 15"] = _noise(d, "FBM", Detail=15.0, Roughness=0.5, Lacunarity=1.7)
-    cases["noise 3D FBM detail 21 (clamped to 15)"] = _noise("3D", "FBM", Detail=21.0, Roughness=0.5, Lacunarity=1.7)
+    cases["noise 3D FBM detail 21 (clamped to 15)"] = _noise("3D", "FBM", Detail=21.0, Lacunarity=1.7)
+    detail = {"Detail": lambda nt: _sweep(nt, "Y", 0.0, 6.0)}
     for t in NOISE_TYPES:
-        cases[f"noise 3D {t} detail per point"] = _noise("3D", t, links={"Detail": lambda nt: _sweep(nt, "Y", 0.0, 6.0)})
+        cases[f"noise 3D {t} detail per point"] = _noise("3D", t, links=detail)
         cases[f"noise 3D {t} roughness 0"] = _noise("3D", t, Roughness=0.0, Detail=3.5)
         # Large values over many octaves: on exact coordinates (_snapped), as the plane's
         # Generated coordinate differs from the kernel's by float32 ulps, which these amplify.
         cases[f"noise 3D {t} big"] = _noise("3D", t, Scale=31.0, Detail=6.7, Roughness=0.8, Offset=1.0, Gain=2.0,
-                                                    links={"Vector": _snapped})
+                                            links={"Vector": _snapped})
     for shift in (123456.0, -2500000.0):
         for d in DIMENSIONS:
             w = {"W": lambda nt, shift=shift: _math(nt, "ADD", _w_sweep(nt), shift)}
             cases[f"noise {d} far {shift:g}"] = _noise(d, "FBM", Scale=1.0, Detail=1.0,
                                                         links=dict(w, Vector=_far(shift)))
-    cases["noise 2D lacunarity per point"] = _noise("2D", "FBM", links={"Lacunarity": lambda nt: _sweep(nt, "Y", 1.0, 3.0)})
+    cases["noise 2D lacunarity per point"] = _noise("2D", "FBM",
+                                                    links={"Lacunarity": lambda nt: _sweep(nt, "Y", 1.0, 3.0)})
     cases["noise 4D W per point"] = _noise("4D", "FBM", links={"W": _w_sweep})
     cases["noise 3D scale per point"] = _noise("3D", "FBM", links={"Scale": lambda nt: _sweep(nt, "Y", 2.0, 20.0)})
+    cases["noise constant vector"] = _noise("3D", "HETERO_TERRAIN", "Color", Distortion=0.3,
+                                            links={"Vector": lambda nt: _vector(nt, 0.3, -1.7, 2.2)})
     return cases
 
 
@@ -154,8 +159,6 @@ def mapping_cases():
         socket.node.color_mapping.brightness, socket.node.color_mapping.saturation = 1.7, 0.3
         return socket
     cases["colour mapping (not synced)"] = colour_mapped
-    cases["noise constant vector"] = _noise("3D", "HETERO_TERRAIN", "Color", Distortion=0.3,
-                                            links={"Vector": lambda nt: _vector(nt, 0.3, -1.7, 2.2)})
     return cases
 
 
@@ -170,17 +173,24 @@ def _cells(nt, n=13.0):
     return [_math(nt, "FLOOR", _math(nt, "MULTIPLY_ADD", split.outputs[k], n, -n / 2 + 0.25 * k)) for k in range(3)]
 
 
+def _cell_vector(nt):
+    x, y, z = _cells(nt)
+    return _vector(nt, x, y, _math(nt, "MULTIPLY", z, 0.5))
+
+
+def _cell_w(nt):
+    return _math(nt, "FLOOR", _sweep(nt, "Y", -7.0, 9.0))
+
+
 def white_noise_cases():
     cases = {}
     for d in DIMENSIONS:
+        props = {"noise_dimensions": d}
         for output in ("Value", "Color"):
-            def vector(nt):
-                x, y, z = _cells(nt)
-                return _vector(nt, x, y, _math(nt, "MULTIPLY", z, 0.5))
-            w = lambda nt: _math(nt, "FLOOR", _sweep(nt, "Y", -7.0, 9.0))  # noqa: E731
-            cases[f"white noise {d} {output}"] = _texture("ShaderNodeTexWhiteNoise", output, {"noise_dimensions": d},
-                                                           {"W": 0.75}, {"Vector": vector, "W": w})
-        cases[f"white noise {d} unlinked"] = _texture("ShaderNodeTexWhiteNoise", "Color", {"noise_dimensions": d}, {"W": 0.25})
+            cases[f"white noise {d} {output}"] = _texture("ShaderNodeTexWhiteNoise", output, props, {"W": 0.75},
+                                                           {"Vector": _cell_vector, "W": _cell_w})
+        # Cycles gives White Noise's Vector no default link: unlinked, it hashes (0, 0, 0).
+        cases[f"white noise {d} unlinked"] = _texture("ShaderNodeTexWhiteNoise", "Color", props, {"W": 0.25})
     return cases
 
 
@@ -214,8 +224,10 @@ def magic_cases():
     for depth in range(10):
         cases[f"magic depth {depth}"] = _texture("ShaderNodeTexMagic", "Color", {"turbulence_depth": depth},
                                                  {"Scale": 3.1, "Distortion": 1.7})
-    cases["magic fac"] = _texture("ShaderNodeTexMagic", "Fac", {"turbulence_depth": 4}, {"Scale": 2.0, "Distortion": 0.6})
-    cases["magic no distortion"] = _texture("ShaderNodeTexMagic", "Color", {"turbulence_depth": 0}, {"Distortion": 0.0})
+    cases["magic fac"] = _texture("ShaderNodeTexMagic", "Fac", {"turbulence_depth": 4},
+                                  {"Scale": 2.0, "Distortion": 0.6})
+    cases["magic no distortion"] = _texture("ShaderNodeTexMagic", "Color", {"turbulence_depth": 0},
+                                            {"Distortion": 0.0})
     for depth in (8, 9, 10):
         cases[f"magic depth {depth} snapped"] = _texture("ShaderNodeTexMagic", "Color", {"turbulence_depth": depth},
                                                          {"Scale": 3.1, "Distortion": 1.7}, links={"Vector": _snapped})
@@ -233,21 +245,20 @@ def wave_cases():
     cases = {}
     for profile in ("SIN", "SAW", "TRI"):
         for direction in ("X", "Y", "Z", "DIAGONAL"):
+            props = {"wave_type": "BANDS", "bands_direction": direction, "wave_profile": profile}
             cases[f"wave bands {direction} {profile}"] = _texture(
-                "ShaderNodeTexWave", "Fac", {"wave_type": "BANDS", "bands_direction": direction, "wave_profile": profile},
-                {"Scale": 2.3, "Phase Offset": 0.7}, mapping=_TILTED)
+                "ShaderNodeTexWave", "Fac", props, {"Scale": 2.3, "Phase Offset": 0.7}, mapping=_TILTED)
         for direction in ("X", "Y", "Z", "SPHERICAL"):
+            props = {"wave_type": "RINGS", "rings_direction": direction, "wave_profile": profile}
             cases[f"wave rings {direction} {profile}"] = _texture(
-                "ShaderNodeTexWave", "Fac", {"wave_type": "RINGS", "rings_direction": direction, "wave_profile": profile},
-                {"Scale": 1.7, "Phase Offset": -0.4}, mapping=_TILTED)
+                "ShaderNodeTexWave", "Fac", props, {"Scale": 1.7, "Phase Offset": -0.4}, mapping=_TILTED)
     for detail in (0.0, 2.5, 7.0):
         cases[f"wave distorted detail {detail}"] = _texture(
             "ShaderNodeTexWave", "Color", {"wave_type": "BANDS", "bands_direction": "DIAGONAL"},
             {"Scale": 2.0, "Distortion": 6.0, "Detail": detail, "Detail Scale": 3.3, "Detail Roughness": 0.65})
-    cases["wave rings distorted"] = _texture("ShaderNodeTexWave", "Fac", {"wave_type": "RINGS", "rings_direction": "SPHERICAL",
-                                                                         "wave_profile": "TRI"},
-                                             {"Scale": 1.5, "Distortion": 3.0, "Detail": 4.0, "Detail Scale": 1.2},
-                                             mapping=_TILTED)
+    cases["wave rings distorted"] = _texture(
+        "ShaderNodeTexWave", "Fac", {"wave_type": "RINGS", "rings_direction": "SPHERICAL", "wave_profile": "TRI"},
+        {"Scale": 1.5, "Distortion": 3.0, "Detail": 4.0, "Detail Scale": 1.2}, mapping=_TILTED)
     return cases
 
 
@@ -267,7 +278,8 @@ def brick_cases():
         "brick fac": _brick("Fac"),
         "brick negative": _brick(mapping=_CENTRED),
         "brick sharp mortar": _brick("Fac", **{"Mortar Smooth": 0.0, "Mortar Size": 0.05}),
-        "brick offset squash": _brick(props={"offset": 0.3, "offset_frequency": 3, "squash": 0.6, "squash_frequency": 2}),
+        "brick offset squash": _brick(props={"offset": 0.3, "offset_frequency": 3, "squash": 0.6,
+                                             "squash_frequency": 2}),
         "brick offset every row": _brick(props={"offset": 0.7, "offset_frequency": 1}),
         "brick squash every row": _brick(props={"squash": 2.5, "squash_frequency": 1}),
         "brick bias": _brick(**{"Bias": -0.4, "Brick Width": 0.9, "Row Height": 0.3}),
@@ -308,7 +320,6 @@ def test_texture_matches_cycles(baked, name):
 
 def _folding_cases():
     """(kind, props, scalar inputs, colour inputs) covering every texture and its modes."""
-    from ember.engine.nodes.textures import NODES
     noise = {"W": 0.7, "Scale": 3.0, "Detail": 3.5, "Roughness": 0.6, "Lacunarity": 2.0, "Offset": 0.2, "Gain": 1.1,
              "Distortion": 0.4}
     colours = {"Color1": (0.9, 0.2, 0.1), "Color2": (0.1, 0.3, 0.8), "Mortar": (0.0, 0.5, 0.0)}
@@ -332,9 +343,6 @@ def _folding_cases():
 def test_constant_inputs_give_each_point_its_value():
     """A texture of constant inputs (0-d scalars, (3,) vectors, as constant folding passes
     them) gives what it gives per point: evaluated at 5 points at once and at each alone."""
-    from ember.engine.nodes.graph import Input, Link, Node
-    from ember.engine.nodes.registry import REGISTRY
-
     rng = np.random.default_rng(3)
     vectors = rng.uniform(-2.0, 2.0, (5, 3))
     for kind, props, scalars, colours in _folding_cases():

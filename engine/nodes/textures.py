@@ -255,7 +255,8 @@ def wave(node, p, distortion, detail, detail_scale, detail_roughness, phase):
 @node("ShaderNodeTexWave", "Texture", reads=_GENERATED)
 def wave_texture(node, inputs, state):
     scale = f32(inputs["Scale"])
-    args = tuple(scalar(inputs[k]) for k in ("Distortion", "Detail", "Detail Scale", "Detail Roughness", "Phase Offset"))
+    args = tuple(scalar(inputs[k])
+                 for k in ("Distortion", "Detail", "Detail Scale", "Detail Roughness", "Phase Offset"))
     p = _broadcast(tuple(c * scale for c in components(f32(texture_vector(node, inputs, state)))), *args)
     fac = _memo(lambda: wave(node, p, *args))
     return {"Fac": fac, "Color": lambda: stack(fac(), fac(), fac())}
@@ -316,4 +317,5 @@ def brick_texture(node, inputs, state):
     return {"Fac": lambda: result()[1], "Color": color}
 
 
-NODES = (noise_texture, white_noise_texture, gradient_texture, checker_texture, magic_texture, wave_texture, brick_texture)
+NODES = (noise_texture, white_noise_texture, gradient_texture, checker_texture, magic_texture, wave_texture,
+         brick_texture)
