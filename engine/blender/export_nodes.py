@@ -7,7 +7,7 @@ its type's zero); node groups at any depth (a group's output is the inner Group 
 an inner Group Input's output the group node's input outside), so the core never sees a group.
 A node's settings become plain props: every enum, number, boolean, string and vector property
 it adds to a plain ShaderNode, and what its datablock pointers hold (`PROPS` exporters:
-colour ramps, curves, images, objects).
+colour ramps, curves, images, objects, texture mappings).
 """
 from __future__ import annotations
 
@@ -135,8 +135,21 @@ def _object(ob, context):
     return tuple(float(v) for row in ob.matrix_world for v in row)
 
 
+def _texture_mapping(mapping, context):
+    """A texture node's TexMapping as Cycles syncs it (type, translation, rotation, scale, axis
+    mapping: engine/nodes/texture_mapping.py), None where Cycles skips it as the identity."""
+    if mapping is None:
+        return None
+    t, r, s = (tuple(float(v) for v in x) for x in (mapping.translation, mapping.rotation, mapping.scale))
+    axes = (mapping.mapping_x, mapping.mapping_y, mapping.mapping_z)
+    if t == (0.0, 0.0, 0.0) and r == (0.0, 0.0, 0.0) and s == (1.0, 1.0, 1.0) and axes == ("X", "Y", "Z"):
+        return None
+    return (mapping.vector_type, t, r, s, axes)
+
+
 # Pointer properties by name -> exporter(value, context) of plain data.
-PROPS = {"color_ramp": _color_ramp, "mapping": _curve_mapping, "object": _object}
+PROPS = {"color_ramp": _color_ramp, "mapping": _curve_mapping, "object": _object,
+         "texture_mapping": _texture_mapping}
 
 
 class _Export:

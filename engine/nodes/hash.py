@@ -1,0 +1,135 @@
+"""Cycles' integer hashes, bit for bit (util/hash.h): Bob Jenkins' lookup3 `final` and `mix`
+over 1 to 4 keys, and the float hashes built on them (a float's IEEE bits hashed, the result
+mapped to [0, 1] in float32). Perlin noise hashes its lattice points with these, White Noise
+hashes its coordinates, the noise textures derive their seed offsets from them.
+
+Keys and results are uint32 arrays of any shape (0-d for constants); arithmetic wraps modulo
+2^32 as C's unsigned arithmetic does.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+_U32 = np.uint32
+# lookup3's initial value for n keys: 0xdeadbeef + (n << 2) + 13.
+_SEED = tuple(_U32((0xDEADBEEF + (n << 2) + 13) & 0xFFFFFFFF) for n in range(5))
+# uint_to_float_incl: float(n) * (1 / (float)0xFFFFFFFF), where (float)0xFFFFFFFF rounds to 2^32.
+_INCL = 2.0 ** -32
+
+
+def _keys(*keys):
+    """The keys as uint32 arrays broadcast to one shape (copies: the hash works in place)."""
+    out = np.broadcast_arrays(*(np.asarray(k).astype(_U32, copy=False) for k in keys))
+    return [np.array(k, _U32) for k in out]
+
+
+def _rot(x, k: int, out, tmp):
+    """x rotated left by k bits, into `out` (`tmp` is scratch): no allocation per step."""
+    np.left_shift(x, _U32(k), out=out)
+    np.right_shift(x, _U32(32 - k), out=tmp)
+    out |= tmp
+    return out
+
+
+def mix(a, b, c, t=None, u=None) -> None:
+    """lookup3's mix, in place on uint32 arrays a, b, c of one shape (t, u: scratch arrays of
+    that shape, allocated if not given)."""
+    with np.errstate(over="ignore"):
+        t = np.empty_like(a) if t is None else t
+        u = np.empty_like(a) if u is None else u
+        a -= c; a ^= _rot(c, 4, t, u); c += b  # noqa: E702 (lookup3's rows, kept as rows)
+        b -= a; b ^= _rot(a, 6, t, u); a += c  # noqa: E702
+        c -= b; c ^= _rot(b, 8, t, u); b += a  # noqa: E702
+        a -= c; a ^= _rot(c, 16, t, u); c += b  # noqa: E702
+        b -= a; b ^= _rot(a, 19, t, u); a += c  # noqa: E702
+        c -= b; c ^= _rot(b, 4, t, u); b += a  # noqa: E702
+
+
+def final(a, b, c, t=None, u=None):
+    """lookup3's final, in place on uint32 arrays a, b, c of one shape; returns c (t, u:
+    scratch arrays of that shape, allocated if not given)."""
+    with np.errstate(over="ignore"):
+        t = np.empty_like(a) if t is None else t
+        u = np.empty_like(a) if u is None else u
+        c ^= b; c -= _rot(b, 14, t, u)  # noqa: E702
+        a ^= c; a -= _rot(c, 11, t, u)  # noqa: E702
+        b ^= a; b -= _rot(a, 25, t, u)  # noqa: E702
+        c ^= b; c -= _rot(b, 16, t, u)  # noqa: E702
+        a ^= c; a -= _rot(c, 4, t, u)  # noqa: E702
+        b ^= a; b -= _rot(a, 14, t, u)  # noqa: E702
+        c ^= b; c -= _rot(b, 24, t, u)  # noqa: E702
+    return c
+
+
+def seed(n: int):
+    """lookup3's initial value for n keys, 0xdeadbeef + (n << 2) + 13, as uint32."""
+    return _SEED[n]
+
+
+def hash_uint(kx):
+    (a,) = _keys(kx)
+    with np.errstate(over="ignore"):
+        a += _SEED[1]
+    return final(a, np.full_like(a, _SEED[1]), np.full_like(a, _SEED[1]))
+
+
+def hash_uint2(kx, ky):
+    a, b = _keys(kx, ky)
+    with np.errstate(over="ignore"):
+        a += _SEED[2]
+        b += _SEED[2]
+    return final(a, b, np.full_like(a, _SEED[2]))
+
+
+def hash_uint3(kx, ky, kz):
+    a, b, c = _keys(kx, ky, kz)
+    with np.errstate(over="ignore"):
+        a += _SEED[3]
+        b += _SEED[3]
+        c += _SEED[3]
+    return final(a, b, c)
+
+
+def hash_uint4(kx, ky, kz, kw):
+    a, b, c, w = _keys(kx, ky, kz, kw)
+    with np.errstate(over="ignore"):
+        a += _SEED[4]
+        b += _SEED[4]
+        c += _SEED[4]
+        mix(a, b, c)
+        a += w
+    return final(a, b, c)
+
+
+_HASHES = (None, hash_uint, hash_uint2, hash_uint3, hash_uint4)
+
+
+def uint_to_float(n) -> np.ndarray:
+    """Cycles' uint_to_float_incl: n rounded to float32, times 2^-32 (exact), as float64."""
+    return np.asarray(n).astype(np.float32).astype(np.float64) * _INCL
+
+
+def float_bits(x) -> np.ndarray:
+    """The IEEE bits of x as float32 (Cycles' __float_as_uint of a float socket value)."""
+    return np.asarray(x, np.float64).astype(np.float32).view(_U32)
+
+
+def hash_float(*k) -> np.ndarray:
+    """hash_float_to_float, hash_float2_to_float, ... : 1 to 4 floats -> [0, 1]."""
+    return uint_to_float(_HASHES[len(k)](*(float_bits(x) for x in k)))
+
+
+def hash_float_to_float3(*k) -> tuple:
+    """hash_float{,2,3,4}_to_float3: three hashes of the key, each a permutation of the key or
+    the key with a constant appended (Cycles' choice, per dimension)."""
+    if len(k) == 1:
+        (x,) = k
+        return hash_float(x), hash_float(x, 1.0), hash_float(x, 2.0)
+    if len(k) == 2:
+        x, y = k
+        return hash_float(x, y), hash_float(x, y, 1.0), hash_float(x, y, 2.0)
+    if len(k) == 3:
+        x, y, z = k
+        return hash_float(x, y, z), hash_float(x, y, z, 1.0), hash_float(x, y, z, 2.0)
+    x, y, z, w = k
+    return hash_float(x, y, z, w), hash_float(z, x, w, y), hash_float(w, z, y, x)
