@@ -28,7 +28,8 @@ class NodeType:
     outputs it computes (missing ones are zero; a value may be a function of no arguments,
     called only if the output is read); `inputs` maps every input identifier to its value,
     converted to the socket's type. `reads`: the shading-state fields it uses
-    (engine/nodes/state.py), or {output: fields} where they depend on the output read; a node
+    (engine/nodes/state.py), or {output: fields} where they depend on the output read, or a
+    function (node, outputs used) -> fields where they depend on the node's links; a node
     that reads none is evaluated at compile time when all its inputs are constant. `menu`:
     Blender's Add menu it sits in (the coverage table)."""
 
@@ -37,8 +38,10 @@ class NodeType:
     evaluate: Callable
     reads: object = ()
 
-    def fields(self, outputs) -> set:
-        """The shading-state fields read when `outputs` (identifiers) are used."""
+    def fields(self, outputs, node=None) -> set:
+        """The shading-state fields read when `outputs` (identifiers) of `node` are used."""
+        if callable(self.reads):
+            return set(self.reads(node, outputs))
         if isinstance(self.reads, dict):
             return {f for name in outputs for f in self.reads.get(name, ())}
         return set(self.reads)
@@ -47,7 +50,7 @@ class NodeType:
 def node(kind: str, menu: str, reads=()):
     """Decorator: the function becomes a NodeType (collected by engine/nodes/registry.py)."""
     def make(fn):
-        return NodeType(kind, menu, fn, reads if isinstance(reads, dict) else tuple(reads))
+        return NodeType(kind, menu, fn, reads if isinstance(reads, dict) or callable(reads) else tuple(reads))
     return make
 
 

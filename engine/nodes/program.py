@@ -105,7 +105,7 @@ def compile(graph: Graph, outputs: dict) -> Program:
             inputs.append((socket.name, ref, src, socket.type))
         if kind is None:
             warnings.append(f"{node.label} ({node.kind}) is not supported: its outputs are zero")
-        fields = kind.fields(used[i]) if kind is not None else set()
+        fields = kind.fields(used[i], node) if kind is not None else set()
         if kind is None or (not fields and all(isinstance(ref, _Const) for _, ref, _, _ in inputs)):
             args = {name: convert(ref.value, src, dst) for name, ref, src, dst in inputs}
             out = kind.evaluate(node, args, None) if kind is not None else {}

@@ -5,9 +5,8 @@ checker.h, magic.h, wave.h, brick.h).
 A texture whose Vector is unlinked reads the Generated coordinate (Cycles' LINK_TEXTURE_
 GENERATED), except White Noise, whose unlinked Vector is its socket value (Cycles gives that
 socket no default link); the vector then goes through the node's texture mapping
-(texture_mapping.py). The textures declare that they read Generated whether or not their
-Vector is linked (a NodeType's reads are per kind), so a texture is never folded to a
-constant. Coordinates are scaled in float32 as Cycles does, so the float32 roundings that
+(texture_mapping.py). A texture whose Vector is linked reads nothing of the shading state, so
+one fed constants is folded at compile time. Coordinates are scaled in float32 as Cycles does, so the float32 roundings that
 decide a cell (a floor, an integer cast) are the kernel's; what follows a cell decision is
 float64, except Magic, whose folds amplify rounding and follow the kernel's float32 steps.
 """
@@ -20,7 +19,10 @@ from .base import components, node, scalar, stack, triple
 from .hash import hash_float, hash_float_to_float3
 from .noise import F32, fractal, offset, snoise
 
-_GENERATED = ("generated",)
+def _GENERATED(node, outputs) -> tuple:
+    """A texture reads the Generated coordinate where its Vector is unlinked."""
+    socket = node.input("Vector")
+    return () if socket is not None and socket.link is not None else ("generated",)
 _DIMENSIONS = {"1D": 1, "2D": 2, "3D": 3, "4D": 4}
 _2PI = float(F32(2.0 * np.pi))  # M_2PI_F
 _PI_2 = float(F32(0.5 * np.pi))  # M_PI_2_F
