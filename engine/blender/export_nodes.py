@@ -15,6 +15,7 @@ import bpy
 
 from ..nodes.base import convert
 from ..nodes.graph import Graph, Input, Link, Node
+from .export_image import image_texels
 
 _GROUP_KINDS = {"ShaderNodeGroup", "NodeGroup"}
 _BASE_PROPS = None  # the properties every ShaderNode has (name, location, ...): not settings
@@ -82,7 +83,7 @@ def _object(ob, context):
 
 
 # Pointer properties by name -> exporter(value, context) of plain data.
-PROPS = {"color_ramp": _color_ramp, "object": _object}
+PROPS = {"color_ramp": _color_ramp, "object": _object, "image": image_texels}
 
 
 class _Export:
