@@ -3,6 +3,6 @@ them. The coverage table (README) and the compiler read it; a kind not listed he
 reported and falls back (engine/nodes/program.py)."""
 from __future__ import annotations
 
-from . import closures, environment, map_range, mapping, math, vector, vector_math
+from . import closures, environment, map_range, mapping, math, sky, vector, vector_math
 
-REGISTRY = {t.kind: t for module in (closures, math, vector, vector_math, map_range, mapping, environment) for t in module.NODES}
+REGISTRY = {t.kind: t for module in (closures, math, vector, vector_math, map_range, mapping, sky, environment) for t in module.NODES}
