@@ -16,6 +16,7 @@ import numpy as np
 
 from ..nodes.base import convert
 from ..nodes.graph import Graph, Input, Link, Node
+from .export_image import image_texels
 
 _GROUP_KINDS = {"ShaderNodeGroup", "NodeGroup"}
 _BASE_PROPS = None  # the properties every ShaderNode has (name, location, ...): not settings
@@ -148,7 +149,7 @@ def _texture_mapping(mapping, context):
 
 
 # Pointer properties by name -> exporter(value, context) of plain data.
-PROPS = {"color_ramp": _color_ramp, "mapping": _curve_mapping, "object": _object,
+PROPS = {"color_ramp": _color_ramp, "image": image_texels, "mapping": _curve_mapping, "object": _object,
          "texture_mapping": _texture_mapping}
 
 

@@ -1,0 +1,118 @@
+"""Images as Cycles' kernel reads them: texels stored as Cycles stores them, looked up with its
+interpolations and extensions (kernel/device/cpu/image.h, TextureInterpolator::interp and its
+closest, linear and cubic B-spline lookups; svm/image.h svm_image_texture).
+
+Texel (0, 0) is the bottom-left one and texel centres sit at ((i + 0.5) / width,
+(j + 0.5) / height): an image's v grows upward, as Blender stores its pixels. Texture
+coordinates are scaled to texels in float32, as the kernel does, so which texel Closest picks
+at a boundary is the kernel's choice. Smart interpolation is cubic here, as in Cycles' SVM on
+the CPU (interp's default case).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+F32 = np.float32
+# Cycles' colour for an image it has no pixels of (util/texture.h TEX_IMAGE_MISSING_*), RGBA.
+MISSING = np.array([1.0, 0.0, 1.0, 1.0])
+
+
+@dataclass(frozen=True, eq=False)
+class Texels:
+    """An image's texels as Cycles keeps them for its kernel. `pixels`: (height, width, 4)
+    float32, row 0 at the bottom; `srgb`: the texels are 8-bit sRGB values (k / 255) that the
+    kernel interpolates as they are and converts to linear after the lookup (Cycles'
+    NODE_IMAGE_COMPRESS_AS_SRGB), else they are scene linear. Compared by identity (a node's
+    props stay hashable): one Texels per image per export."""
+
+    name: str
+    pixels: np.ndarray
+    srgb: bool = False
+
+    @property
+    def size(self) -> tuple:
+        return self.pixels.shape[1], self.pixels.shape[0]
+
+
+def _floor(x):
+    """Cycles' frac(): (x - i, i) with i = int(x) - (x < 0). For a negative whole x this is
+    x - 1 with a fraction of 1, not floor(x) (the same texel weights, but Closest reads i)."""
+    i = np.trunc(x).astype(np.int64) - (x < 0)
+    return x - i.astype(x.dtype), i
+
+
+def _wrap(i, n: int, extension: str):
+    """Texel indices `i` of a row of n under the extension; CLIP leaves them for _read."""
+    if extension == "REPEAT":
+        return np.mod(i, n)
+    if extension == "EXTEND":
+        return np.clip(i, 0, n - 1)
+    if extension == "MIRROR":
+        m = np.abs(i + (i < 0)) % (2 * n)
+        return np.where(m >= n, 2 * n - m - 1, m)
+    return i
+
+
+def _read(pixels, ix, iy, extension: str):
+    """Texels at (ix, iy) (inside the image unless CLIP), transparent black outside it
+    (read_clip)."""
+    h, w = pixels.shape[:2]
+    flat = pixels.reshape(h * w, -1)
+    if extension != "CLIP":
+        return np.take(flat, iy * w + ix, axis=0).astype(np.float64)
+    inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
+    texels = np.take(flat, np.clip(iy, 0, h - 1) * w + np.clip(ix, 0, w - 1), axis=0).astype(np.float64)
+    return np.where(inside[..., None], texels, 0.0)
+
+
+def _cubic_weights(t):
+    """The uniform cubic B-spline's four weights at fraction t (SET_CUBIC_SPLINE_WEIGHTS)."""
+    return ((((-1.0 / 6.0) * t + 0.5) * t - 0.5) * t + 1.0 / 6.0, ((0.5 * t - 1.0) * t) * t + 2.0 / 3.0,
+            ((-0.5 * t + 0.5) * t + 0.5) * t + 1.0 / 6.0, (1.0 / 6.0) * t * t * t)
+
+
+def lookup(pixels: np.ndarray, x, y, interpolation: str = "LINEAR", extension: str = "REPEAT") -> np.ndarray:
+    """The texels of `pixels` (H, W, C) at texture coordinates x, y (each (N,) or 0-d):
+    (N, C) float64. interpolation: CLOSEST, LINEAR, CUBIC or SMART; extension: REPEAT, EXTEND,
+    CLIP or MIRROR."""
+    h, w = pixels.shape[:2]
+    x = np.atleast_1d(np.asarray(x, np.float64)).astype(F32)
+    y = np.atleast_1d(np.asarray(y, np.float64)).astype(F32)
+    if interpolation == "CLOSEST":
+        _, ix = _floor(x * F32(w))
+        _, iy = _floor(y * F32(h))
+        return _read(pixels, _wrap(ix, w, extension), _wrap(iy, h, extension), extension)
+    # Linear and cubic samples are centred on the point: texel centres at half-texel offsets.
+    tx, ix = _floor(x * F32(w) - F32(0.5))
+    ty, iy = _floor(y * F32(h) - F32(0.5))
+    tx, ty = tx.astype(np.float64)[:, None], ty.astype(np.float64)[:, None]
+    if interpolation == "LINEAR":
+        offsets, wx, wy = (0, 1), (1.0 - tx, tx), (1.0 - ty, ty)
+    else:
+        offsets, wx, wy = (-1, 0, 1, 2), _cubic_weights(tx), _cubic_weights(ty)
+    columns = [_wrap(ix + b, w, extension) for b in offsets]
+    out = 0.0
+    for a, v in zip(offsets, wy):
+        row = _wrap(iy + a, h, extension)
+        out = out + v * sum(u * _read(pixels, column, row, extension) for u, column in zip(wx, columns))
+    return out
+
+
+def srgb_to_linear(c):
+    """Cycles' color_srgb_to_linear: the sRGB curve, negative values to 0."""
+    c = np.asarray(c, np.float64)
+    return np.where(c < 0.04045, np.where(c < 0.0, 0.0, c * (1.0 / 12.92)),
+                    np.power(np.maximum(c + 0.055, 0.0) * (1.0 / 1.055), 2.4))
+
+
+def sample(texels: Texels | None, x, y, interpolation: str, extension: str) -> np.ndarray:
+    """svm_image_texture: RGBA (N, 4) of an image at x, y; sRGB texels converted after the
+    lookup (alpha kept); no image: Cycles' magenta."""
+    if texels is None:
+        return np.broadcast_to(MISSING, (np.size(x), 4)).copy()
+    rgba = lookup(texels.pixels, x, y, interpolation, extension)
+    if texels.srgb:
+        rgba[:, :3] = srgb_to_linear(rgba[:, :3])
+    return rgba
