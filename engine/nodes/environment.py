@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import image
-from .base import components, node, triple
+from . import image, texture_mapping
+from .base import components, node
 
 # Blender's interpolation identifiers are capitalised words ("Linear"); Cycles' are the same.
 _INTERPOLATION = {"Closest": "CLOSEST", "Linear": "LINEAR", "Cubic": "CUBIC", "Smart": "SMART"}
@@ -48,10 +48,9 @@ def environment(d, texels, projection: str, interpolation: str) -> np.ndarray:
     return rgba.reshape(np.shape(u) + (4,))
 
 
-@node("ShaderNodeTexEnvironment", "Texture", reads=("P",))
+@node("ShaderNodeTexEnvironment", "Texture", reads=texture_mapping.unlinked_reads("P"))
 def environment_texture(node, inputs, state):
-    socket = node.input("Vector")
-    d = triple(inputs["Vector"]) if socket is not None and socket.link is not None else triple(state.P)
+    d = texture_mapping.coordinate(node, inputs, state, "P")
     rgba = environment(d, node.prop("image"), node.prop("projection", "EQUIRECTANGULAR"),
                        node.prop("interpolation", "Linear"))
     return {"Color": rgba[..., :3], "Alpha": rgba[..., 3]}

@@ -33,8 +33,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from . import atmosphere, hosek_data, image
-from .base import components, node, triple
+from . import atmosphere, hosek_data, image, texture_mapping
+from .base import components, node
 
 # CIE XYZ (D65) -> Linear Rec.709: Blender's OpenColorIO configuration (the Linear Rec.709
 # space from CIE-XYZ D65), which Cycles reads through the aces_interchange role.
@@ -245,10 +245,9 @@ def sky(kind: str, d, props: dict) -> np.ndarray:
     return scattering(d, props)
 
 
-@node("ShaderNodeTexSky", "Texture", reads=("generated",))
+@node("ShaderNodeTexSky", "Texture", reads=texture_mapping.unlinked_reads("generated"))
 def sky_texture(node, inputs, state):
-    socket = node.input("Vector")
-    d = triple(inputs["Vector"]) if socket is not None and socket.link is not None else triple(state.generated)
+    d = texture_mapping.coordinate(node, inputs, state)
     props = {key: node.prop(key, _DEFAULTS[key]) for key in _SETTINGS}
     return {"Color": sky(props["sky_type"], d, props)}
 

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .base import triple
+
 _AXIS = {"NONE": None, "X": 0, "Y": 1, "Z": 2}
 
 
@@ -64,3 +66,19 @@ def apply(vector, mapping):
         length = np.linalg.norm(out, axis=-1, keepdims=True)
         out = np.where(length > 0.0, out / np.where(length > 0.0, length, 1.0), 0.0)
     return out
+
+
+def unlinked_reads(field: str):
+    """A NodeType's reads for a texture whose unlinked Vector reads shading-state `field`."""
+    def reads(node, outputs) -> tuple:
+        socket = node.input("Vector")
+        return () if socket is not None and socket.link is not None else (field,)
+    return reads
+
+
+def coordinate(node, inputs, state, field: str = "generated"):
+    """A texture's coordinate: its Vector input where linked, else the shading state's `field`
+    (Cycles' default link of the texture), through the node's own mapping."""
+    socket = node.input("Vector")
+    linked = socket is not None and socket.link is not None
+    return apply(triple(inputs["Vector"]) if linked else triple(getattr(state, field)), node.prop("texture_mapping"))

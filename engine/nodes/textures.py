@@ -19,10 +19,7 @@ from .base import components, node, scalar, stack, triple
 from .hash import hash_float, hash_float_to_float3
 from .noise import F32, fractal, offset, snoise
 
-def _GENERATED(node, outputs) -> tuple:
-    """A texture reads the Generated coordinate where its Vector is unlinked."""
-    socket = node.input("Vector")
-    return () if socket is not None and socket.link is not None else ("generated",)
+_GENERATED = texture_mapping.unlinked_reads("generated")
 _DIMENSIONS = {"1D": 1, "2D": 2, "3D": 3, "4D": 4}
 _2PI = float(F32(2.0 * np.pi))  # M_2PI_F
 _PI_2 = float(F32(0.5 * np.pi))  # M_PI_2_F
@@ -30,14 +27,6 @@ _PI_2 = float(F32(0.5 * np.pi))  # M_PI_2_F
 
 def f32(x) -> np.ndarray:
     return np.asarray(x).astype(F32)
-
-
-def texture_vector(node, inputs, state):
-    """The texture's coordinate: the Vector input where linked, else the Generated coordinate,
-    through the node's texture mapping."""
-    socket = node.input("Vector")
-    vector = triple(inputs["Vector"]) if socket is not None and socket.link is not None else triple(state.generated)
-    return texture_mapping.apply(vector, node.prop("texture_mapping"))
 
 
 def _broadcast(coords, *params):
@@ -89,7 +78,7 @@ def noise_texture(node, inputs, state):
     lacunarity, offset_, gain, distortion = (scalar(inputs[k]) for k in ("Lacunarity", "Offset", "Gain", "Distortion"))
     coords = []
     if dimensions >= 2:
-        coords = list(components(texture_vector(node, inputs, state)))[:min(dimensions, 3)]
+        coords = list(components(texture_mapping.coordinate(node, inputs, state)))[:min(dimensions, 3)]
     if dimensions in (1, 4):
         coords.append(scalar(inputs["W"]))
     coords = _broadcast(tuple(f32(c) * scale for c in coords), detail, roughness, lacunarity, offset_, gain, distortion)
@@ -147,7 +136,7 @@ def gradient(kind: str, x, y, z):
 
 @node("ShaderNodeTexGradient", "Texture", reads=_GENERATED)
 def gradient_texture(node, inputs, state):
-    x, y, z = components(texture_vector(node, inputs, state).astype(F32).astype(np.float64))
+    x, y, z = components(texture_mapping.coordinate(node, inputs, state).astype(F32).astype(np.float64))
     fac = _memo(lambda: np.clip(gradient(node.prop("gradient_type", "LINEAR"), x, y, z), 0.0, 1.0))
     return {"Fac": fac, "Color": lambda: stack(fac(), fac(), fac())}
 
@@ -167,7 +156,7 @@ def checker(x, y, z):
 @node("ShaderNodeTexChecker", "Texture", reads=_GENERATED)
 def checker_texture(node, inputs, state):
     scale = f32(inputs["Scale"])
-    x, y, z = (c * scale for c in components(f32(texture_vector(node, inputs, state))))
+    x, y, z = (c * scale for c in components(f32(texture_mapping.coordinate(node, inputs, state))))
     fac = _memo(lambda: checker(x, y, z))
     color = lambda: np.where(fac()[..., None] == 1.0, triple(inputs["Color1"]), triple(inputs["Color2"]))  # noqa: E731
     return {"Fac": fac, "Color": color}
@@ -219,7 +208,7 @@ def magic(x, y, z, scale, depth: int, distortion) -> tuple:
 
 @node("ShaderNodeTexMagic", "Texture", reads=_GENERATED)
 def magic_texture(node, inputs, state):
-    x, y, z = components(texture_vector(node, inputs, state))
+    x, y, z = components(texture_mapping.coordinate(node, inputs, state))
     depth = int(node.prop("turbulence_depth", 2))
     color = _memo(lambda: stack(*magic(x, y, z, inputs["Scale"], depth, inputs["Distortion"])))
     return {"Color": color, "Fac": lambda: color().mean(axis=-1)}
@@ -259,7 +248,7 @@ def wave_texture(node, inputs, state):
     scale = f32(inputs["Scale"])
     args = tuple(scalar(inputs[k])
                  for k in ("Distortion", "Detail", "Detail Scale", "Detail Roughness", "Phase Offset"))
-    p = _broadcast(tuple(c * scale for c in components(f32(texture_vector(node, inputs, state)))), *args)
+    p = _broadcast(tuple(c * scale for c in components(f32(texture_mapping.coordinate(node, inputs, state)))), *args)
     fac = _memo(lambda: wave(node, p, *args))
     return {"Fac": fac, "Color": lambda: stack(fac(), fac(), fac())}
 
@@ -304,7 +293,7 @@ def brick(x, y, mortar_size, mortar_smooth, bias, brick_width, row_height,
 @node("ShaderNodeTexBrick", "Texture", reads=_GENERATED)
 def brick_texture(node, inputs, state):
     scale = f32(inputs["Scale"])
-    x, y, _ = (c * scale for c in components(f32(texture_vector(node, inputs, state))))
+    x, y, _ = (c * scale for c in components(f32(texture_mapping.coordinate(node, inputs, state))))
     args = tuple(scalar(inputs[k]) for k in ("Mortar Size", "Mortar Smooth", "Bias", "Brick Width", "Row Height"))
     x, y = _broadcast((x, y), *args)
     result = _memo(lambda: brick(x, y, *args, node.prop("offset", 0.5), int(node.prop("offset_frequency", 2)),
