@@ -3,6 +3,6 @@ them. The coverage table (README) and the compiler read it; a kind not listed he
 reported and falls back (engine/nodes/program.py)."""
 from __future__ import annotations
 
-from . import closures, math, vector, voronoi
+from . import closures, gabor, math, vector, voronoi
 
-REGISTRY = {t.kind: t for module in (closures, math, vector, voronoi) for t in module.NODES}
+REGISTRY = {t.kind: t for module in (closures, gabor, math, vector, voronoi) for t in module.NODES}

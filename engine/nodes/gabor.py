@@ -1,0 +1,145 @@
+"""Gabor Texture, as Cycles computes it (kernel/svm/gabor.h, Blender 4.3+): sparse Gabor
+convolution noise (Lagae et al. 2009) with Tavernier et al.'s stratified impulses and
+Bernoulli weights (2019), evaluated as a phasor (Tricard et al. 2019) for its Phase and
+Intensity.
+
+Each unit cell holds 8 impulses: a kernel centre, a weight of +-1 and an orientation, drawn
+from Jenkins float hashes of (cell, 3i + k) (engine/nodes/hash.py). A point sums the kernels
+of the 3^d cells around its own that reach it (a kernel is windowed to radius 1). The hashes
+depend only on the cell, so they are drawn once per distinct cell of the batch and gathered
+to its points; the kernels, which need sines and exponentials, only at the points they reach.
+
+Cycles works in float32; the cell of a point (floor of coordinates * scale) is found in
+float32 as there, everything after it in float64.
+"""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from . import hash as H
+from .base import node, scalar, triple
+
+IMPULSES_COUNT = 8
+# Six standard deviations of the summed kernels map to [-1, 1]; Cycles' approximations of the
+# deviation: sqrt(impulses * second moment of the weights (1/2) * integral of a kernel squared
+# (1/4 in 2D, 1/(4 sqrt 2) in 3D)).
+NORMALIZATION_2D = 6.0 * np.sqrt(IMPULSES_COUNT * 0.5 * 0.25)
+NORMALIZATION_3D = 6.0 * np.sqrt(IMPULSES_COUNT * 0.5 / (4.0 * np.sqrt(2.0)))
+
+
+def _at(x, sel):
+    """A per-point value ((N,) or (N, 3)) at the points `sel`; a constant (0-d or one row)
+    stays itself."""
+    return x[sel] if np.ndim(x) and np.shape(x)[0] > 1 else x
+
+
+def _kernel(position, frequency_vector):
+    """Cycles' compute_{2,3}d_gabor_kernel as a phasor (cos, sin): a unit Gaussian windowed by
+    a Hann window, modulated along the frequency vector."""
+    d2 = np.sum(position * position, axis=-1)
+    envelope = np.exp(-np.pi * d2) * (0.5 + 0.5 * np.cos(np.pi * d2))
+    angle = 2.0 * np.pi * np.sum(position * frequency_vector, axis=-1)
+    return envelope * np.cos(angle), envelope * np.sin(angle)
+
+
+def _cell_draws(cells, i: int):
+    """What impulse i of each cell (M, d) float32 draws: kernel centre (M, d), orientation
+    hash(es) and weight (M,) as columns of one table, so one gather serves them all."""
+    seeds = [np.float32(3 * i + k) for k in range(3)]
+    c = [cells[:, a] for a in range(cells.shape[1])]
+    if len(c) == 2:
+        orientation = H.hash_float3_to_float(c[0], c[1], seeds[0])[:, None]
+        center = H.hash_float3_to_float2(c[0], c[1], seeds[1])
+        weight = H.hash_float3_to_float(c[0], c[1], seeds[2])
+    else:
+        orientation = H.hash_float4_to_float2(c[0], c[1], c[2], seeds[0])
+        center = H.hash_float4_to_float3(c[0], c[1], c[2], seeds[1])
+        weight = H.hash_float4_to_float(c[0], c[1], c[2], seeds[2])
+    return np.concatenate([center, orientation, weight[:, None]], axis=1)
+
+
+def _orientation_3d(base, isotropy, random_angles):
+    """Cycles' compute_3d_orientation: the base direction turned by random spherical angles
+    (in [0, pi)) times the isotropy; the base itself where isotropy is 0."""
+    with np.errstate(all="ignore"):
+        inclination = np.arccos(base[..., 2])
+        azimuth = np.where(base[..., 1] < 0.0, -1.0, 1.0) * np.arccos(
+            base[..., 0] / np.hypot(base[..., 0], base[..., 1]))
+    inclination = inclination + random_angles[..., 0] * np.pi * isotropy
+    azimuth = azimuth + random_angles[..., 1] * np.pi * isotropy
+    turned = np.stack([np.sin(inclination) * np.cos(azimuth), np.sin(inclination) * np.sin(azimuth),
+                       np.cos(inclination)], axis=-1)
+    return np.where(np.asarray(isotropy == 0.0)[..., None], base, turned)
+
+
+def gabor_noise(coord32, frequency, isotropy, orientation):
+    """The phasor (N, 2) summed over the 3^d cells around each point of float32 coordinates
+    (N, d); orientation: an angle (2D) or a unit vector (..., 3) (3D); per point or constant."""
+    n, d = coord32.shape
+    cell = np.floor(coord32)
+    local = coord32.astype(np.float64) - cell
+    cells, owner = np.unique(cell, axis=0, return_inverse=True)
+    owner = owner.reshape(-1)
+    phasor_x, phasor_y = np.zeros(n), np.zeros(n)
+    for offset in itertools.product((-1, 0, 1), repeat=d):
+        offset = np.array(offset[::-1], np.float32)
+        position = local - offset
+        neighbours = cells + offset  # float32, as Cycles' cell_position + cell_offset
+        for i in range(IMPULSES_COUNT):
+            draws = _cell_draws(neighbours, i)[owner]
+            to_point = position - draws[:, :d]
+            reached = np.flatnonzero(np.sum(to_point * to_point, axis=1) < 1.0)
+            if reached.size == 0:
+                continue
+            draws, to_point = draws[reached], to_point[reached]
+            if d == 2:
+                angle = _at(orientation, reached) + (draws[:, 2] - 0.5) * np.pi * _at(isotropy, reached)
+                direction = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+            else:
+                direction = _orientation_3d(_at(orientation, reached), _at(isotropy, reached), draws[:, 3:5])
+            frequency_vector = np.asarray(_at(frequency, reached))[..., None] * direction
+            x, y = _kernel(to_point, frequency_vector)
+            weight = np.where(draws[:, -1] < 0.5, -1.0, 1.0)
+            phasor_x[reached] += weight * x
+            phasor_y[reached] += weight * y
+    return phasor_x, phasor_y
+
+
+def _per_point(x, n: int):
+    x = np.asarray(x, np.float64)
+    return x.reshape(-1) if x.ndim and x.shape[0] == n else x
+
+
+@node("ShaderNodeTexGabor", "Texture", reads=("generated",))
+def gabor_texture(node, inputs, state):
+    """Cycles' svm_node_tex_gabor: Value (the phasor's sine part), Phase and Intensity, each
+    mapped to [0, 1] by six standard deviations."""
+    vector_input = node.input("Vector")
+    vector = state.generated if vector_input is not None and vector_input.link is None else inputs["Vector"]
+    scale = np.asarray(inputs["Scale"], np.float32)
+    coord32 = np.asarray(triple(vector), np.float32) * scale[..., None]
+    three_d = node.prop("gabor_type", "2D") == "3D"
+    d = 3 if three_d else 2
+    shape = coord32.shape[:-1]
+    coord32 = np.ascontiguousarray(coord32.reshape(-1, 3)[:, :d])
+    n = coord32.shape[0]
+    frequency = np.maximum(0.001, _per_point(np.asarray(inputs["Frequency"], np.float32), n))
+    isotropy = 1.0 - np.clip(_per_point(np.asarray(inputs["Anisotropy"], np.float32), n), 0.0, 1.0)
+    if three_d:
+        o = np.asarray(triple(inputs["Orientation 3D"]), np.float32).astype(np.float64)
+        with np.errstate(all="ignore"):
+            orientation = o / np.sqrt(np.sum(o * o, axis=-1, keepdims=True))
+        orientation = orientation.reshape(-1, 3)  # a constant becomes one row, broadcasting
+    else:
+        orientation = _per_point(np.asarray(inputs["Orientation 2D"], np.float32), n)
+    with np.errstate(all="ignore"):
+        x, y = gabor_noise(coord32, frequency, isotropy, orientation)
+    norm = NORMALIZATION_3D if three_d else NORMALIZATION_2D
+    return {"Value": lambda: scalar((y / norm * 0.5 + 0.5).reshape(shape)),
+            "Phase": lambda: scalar(((np.arctan2(y, x) + np.pi) / (2.0 * np.pi)).reshape(shape)),
+            "Intensity": lambda: scalar((np.hypot(x, y) / norm).reshape(shape))}
+
+
+NODES = (gabor_texture,)
