@@ -30,80 +30,75 @@ NORMALIZATION_3D = 6.0 * np.sqrt(IMPULSES_COUNT * 0.5 / (4.0 * np.sqrt(2.0)))
 
 
 def _at(x, sel):
-    """A per-point value ((N,) or (N, 3)) at the points `sel`; a constant (0-d or one row)
-    stays itself."""
+    """A per-point value at the points `sel`; a constant (0-d, or one direction) stays itself."""
     return x[sel] if np.ndim(x) and np.shape(x)[0] > 1 else x
 
 
 def _kernel(position, frequency_vector):
     """Cycles' compute_{2,3}d_gabor_kernel as a phasor (cos, sin): a unit Gaussian windowed by
-    a Hann window, modulated along the frequency vector."""
-    d2 = np.sum(position * position, axis=-1)
+    a Hann window, modulated along the frequency vector (components)."""
+    d2 = sum(x * x for x in position)
     envelope = np.exp(-np.pi * d2) * (0.5 + 0.5 * np.cos(np.pi * d2))
-    angle = 2.0 * np.pi * np.sum(position * frequency_vector, axis=-1)
+    angle = 2.0 * np.pi * sum(x * f for x, f in zip(position, frequency_vector))
     return envelope * np.cos(angle), envelope * np.sin(angle)
 
 
 def _cell_draws(cells, i: int):
-    """What impulse i of each cell (M, d) float32 draws: kernel centre (M, d), orientation
-    hash(es) and weight (M,) as columns of one table, so one gather serves them all."""
+    """What impulse i of each cell (d components, float32) draws: kernel centre (d
+    components), orientation hashes (1 in 2D, 2 in 3D), weight hash."""
     seeds = [np.float32(3 * i + k) for k in range(3)]
-    c = [cells[:, a] for a in range(cells.shape[1])]
-    if len(c) == 2:
-        orientation = H.hash_float3_to_float(c[0], c[1], seeds[0])[:, None]
-        center = H.hash_float3_to_float2(c[0], c[1], seeds[1])
-        weight = H.hash_float3_to_float(c[0], c[1], seeds[2])
-    else:
-        orientation = H.hash_float4_to_float2(c[0], c[1], c[2], seeds[0])
-        center = H.hash_float4_to_float3(c[0], c[1], c[2], seeds[1])
-        weight = H.hash_float4_to_float(c[0], c[1], c[2], seeds[2])
-    return np.concatenate([center, orientation, weight[:, None]], axis=1)
+    if len(cells) == 2:
+        return (H.hash_float3_to_float2(*cells, seeds[1]), (H.hash_float3_to_float(*cells, seeds[0]),),
+                H.hash_float3_to_float(*cells, seeds[2]))
+    return (H.hash_float4_to_float3(*cells, seeds[1]), H.hash_float4_to_float2(*cells, seeds[0]),
+            H.hash_float4_to_float(*cells, seeds[2]))
 
 
 def _orientation_3d(base, isotropy, random_angles):
-    """Cycles' compute_3d_orientation: the base direction turned by random spherical angles
-    (in [0, pi)) times the isotropy; the base itself where isotropy is 0."""
+    """Cycles' compute_3d_orientation: the base direction (components) turned by random
+    spherical angles (in [0, pi)) times the isotropy; the base itself where isotropy is 0."""
     with np.errstate(all="ignore"):
-        inclination = np.arccos(base[..., 2])
-        azimuth = np.where(base[..., 1] < 0.0, -1.0, 1.0) * np.arccos(
-            base[..., 0] / np.hypot(base[..., 0], base[..., 1]))
-    inclination = inclination + random_angles[..., 0] * np.pi * isotropy
-    azimuth = azimuth + random_angles[..., 1] * np.pi * isotropy
-    turned = np.stack([np.sin(inclination) * np.cos(azimuth), np.sin(inclination) * np.sin(azimuth),
-                       np.cos(inclination)], axis=-1)
-    return np.where(np.asarray(isotropy == 0.0)[..., None], base, turned)
+        inclination = np.arccos(base[2])
+        azimuth = np.where(base[1] < 0.0, -1.0, 1.0) * np.arccos(base[0] / np.hypot(base[0], base[1]))
+    inclination = inclination + random_angles[0] * np.pi * isotropy
+    azimuth = azimuth + random_angles[1] * np.pi * isotropy
+    turned = (np.sin(inclination) * np.cos(azimuth), np.sin(inclination) * np.sin(azimuth), np.cos(inclination))
+    return tuple(np.where(isotropy == 0.0, b, t) for b, t in zip(base, turned))
 
 
 def gabor_noise(coord32, frequency, isotropy, orientation):
-    """The phasor (N, 2) summed over the 3^d cells around each point of float32 coordinates
-    (N, d); orientation: an angle (2D) or a unit vector (..., 3) (3D); per point or constant."""
-    n, d = coord32.shape
-    cell = np.floor(coord32)
-    local = coord32.astype(np.float64) - cell
-    cells, owner = np.unique(cell, axis=0, return_inverse=True)
+    """The phasor (x, y) summed over the 3^d cells around each point of float32 coordinates
+    (d components (N,)); orientation: an angle (2D) or a unit vector's components (3D); each
+    parameter per point (N,) or constant."""
+    d, n = len(coord32), len(coord32[0])
+    cell = [np.floor(c) for c in coord32]
+    local = [c.astype(np.float64) - k for c, k in zip(coord32, cell)]
+    cells, owner = np.unique(np.stack(cell, axis=1), axis=0, return_inverse=True)
     owner = owner.reshape(-1)
     phasor_x, phasor_y = np.zeros(n), np.zeros(n)
     for offset in itertools.product((-1, 0, 1), repeat=d):
-        offset = np.array(offset[::-1], np.float32)
-        position = local - offset
-        neighbours = cells + offset  # float32, as Cycles' cell_position + cell_offset
+        position = [x - o for x, o in zip(local, offset)]
+        neighbours = tuple(cells[:, a] + np.float32(offset[a]) for a in range(d))  # float32, as Cycles
         for i in range(IMPULSES_COUNT):
-            draws = _cell_draws(neighbours, i)[owner]
-            to_point = position - draws[:, :d]
-            reached = np.flatnonzero(np.sum(to_point * to_point, axis=1) < 1.0)
+            center, angles, weight = _cell_draws(neighbours, i)
+            to_point = [x - np.take(c, owner) for x, c in zip(position, center)]
+            reached = np.flatnonzero(sum(x * x for x in to_point) < 1.0)
             if reached.size == 0:
                 continue
-            draws, to_point = draws[reached], to_point[reached]
+            to_point = [x[reached] for x in to_point]
+            cell_of = owner[reached]
+            iso = _at(isotropy, reached)
             if d == 2:
-                angle = _at(orientation, reached) + (draws[:, 2] - 0.5) * np.pi * _at(isotropy, reached)
-                direction = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+                angle = _at(orientation, reached) + (np.take(angles[0], cell_of) - 0.5) * np.pi * iso
+                direction = (np.cos(angle), np.sin(angle))
             else:
-                direction = _orientation_3d(_at(orientation, reached), _at(isotropy, reached), draws[:, 3:5])
-            frequency_vector = np.asarray(_at(frequency, reached))[..., None] * direction
-            x, y = _kernel(to_point, frequency_vector)
-            weight = np.where(draws[:, -1] < 0.5, -1.0, 1.0)
-            phasor_x[reached] += weight * x
-            phasor_y[reached] += weight * y
+                base = tuple(_at(o, reached) for o in orientation)
+                direction = _orientation_3d(base, iso, [np.take(a, cell_of) for a in angles])
+            f = _at(frequency, reached)
+            x, y = _kernel(to_point, [f * c for c in direction])
+            sign = np.where(np.take(weight, cell_of) < 0.5, -1.0, 1.0)
+            phasor_x[reached] += sign * x
+            phasor_y[reached] += sign * y
     return phasor_x, phasor_y
 
 
@@ -123,15 +118,16 @@ def gabor_texture(node, inputs, state):
     three_d = node.prop("gabor_type", "2D") == "3D"
     d = 3 if three_d else 2
     shape = coord32.shape[:-1]
-    coord32 = np.ascontiguousarray(coord32.reshape(-1, 3)[:, :d])
+    coord32 = coord32.reshape(-1, 3)
     n = coord32.shape[0]
+    coord32 = tuple(np.ascontiguousarray(coord32[:, a]) for a in range(d))
     frequency = np.maximum(0.001, _per_point(np.asarray(inputs["Frequency"], np.float32), n))
     isotropy = 1.0 - np.clip(_per_point(np.asarray(inputs["Anisotropy"], np.float32), n), 0.0, 1.0)
     if three_d:
         o = np.asarray(triple(inputs["Orientation 3D"]), np.float32).astype(np.float64)
         with np.errstate(all="ignore"):
             orientation = o / np.sqrt(np.sum(o * o, axis=-1, keepdims=True))
-        orientation = orientation.reshape(-1, 3)  # a constant becomes one row, broadcasting
+        orientation = tuple(_per_point(orientation[..., a], n) for a in range(3))
     else:
         orientation = _per_point(np.asarray(inputs["Orientation 2D"], np.float32), n)
     with np.errstate(all="ignore"):

@@ -9,7 +9,8 @@ Two families, as in Cycles:
   2D to 4D Voronoi cells.
 Integer arithmetic wraps modulo 2^32 (NumPy arrays wrap silently; errstate quiets 0-d ones).
 Hashes to floats go through float32 as Cycles converts them, and are returned as float64
-holding those float32 values exactly. Arguments broadcast; vector results stack on a last axis.
+holding those float32 values exactly. Arguments are components (each an array or a number,
+broadcasting); a vector result is a tuple of its components.
 """
 from __future__ import annotations
 
@@ -117,24 +118,20 @@ def hash_float4_to_float(kx, ky, kz, kw):
 
 
 def hash_float_to_float3(k):
-    return _stack(hash_float_to_float(k), hash_float2_to_float(k, 1.0), hash_float2_to_float(k, 2.0))
+    return hash_float_to_float(k), hash_float2_to_float(k, 1.0), hash_float2_to_float(k, 2.0)
 
 
 def hash_float3_to_float2(kx, ky, kz):
-    return _stack(hash_float3_to_float(kx, ky, kz), hash_float3_to_float(kz, kx, ky))
+    return hash_float3_to_float(kx, ky, kz), hash_float3_to_float(kz, kx, ky)
 
 
 def hash_float4_to_float2(kx, ky, kz, kw):
-    return _stack(hash_float4_to_float(kx, ky, kz, kw), hash_float4_to_float(kz, kx, kw, ky))
+    return hash_float4_to_float(kx, ky, kz, kw), hash_float4_to_float(kz, kx, kw, ky)
 
 
 def hash_float4_to_float3(kx, ky, kz, kw):
-    return _stack(hash_float4_to_float(kx, ky, kz, kw), hash_float4_to_float(kz, kx, kw, ky),
-                  hash_float4_to_float(kw, kz, ky, kx))
-
-
-def _stack(*parts):
-    return np.stack(np.broadcast_arrays(*parts), axis=-1)
+    return (hash_float4_to_float(kx, ky, kz, kw), hash_float4_to_float(kz, kx, kw, ky),
+            hash_float4_to_float(kw, kz, ky, kx))
 
 
 # --- PCG on int32 -----------------------------------------------------------------------------
@@ -196,15 +193,15 @@ def _int_to_unit(h) -> np.ndarray:
 
 
 def hash_int2_to_float2(x, y):
-    return _stack(*(_int_to_unit(h) for h in hash_pcg2d_i(x, y)))
+    return tuple(_int_to_unit(h) for h in hash_pcg2d_i(x, y))
 
 
 def hash_int3_to_float3(x, y, z):
-    return _stack(*(_int_to_unit(h) for h in hash_pcg3d_i(x, y, z)))
+    return tuple(_int_to_unit(h) for h in hash_pcg3d_i(x, y, z))
 
 
 def hash_int4_to_float4(x, y, z, w):
-    return _stack(*(_int_to_unit(h) for h in hash_pcg4d_i(x, y, z, w)))
+    return tuple(_int_to_unit(h) for h in hash_pcg4d_i(x, y, z, w))
 
 
 def hash_int2_to_float3(x, y):
@@ -212,4 +209,4 @@ def hash_int2_to_float3(x, y):
 
 
 def hash_int4_to_float3(x, y, z, w):
-    return hash_int4_to_float4(x, y, z, w)[..., :3]
+    return hash_int4_to_float4(x, y, z, w)[:3]
