@@ -8,7 +8,7 @@ import pytest
 pytestmark = pytest.mark.blender
 
 import node_bake  # noqa: E402
-from test_nodes_voronoi import _socket, sweep, uv_vector  # noqa: E402
+from test_nodes_voronoi import _constant_vector, _socket, sweep, uv_vector  # noqa: E402
 
 OUTPUTS = ("Value", "Phase", "Intensity")
 
@@ -61,6 +61,8 @@ def test_gabor_matches_cycles():
             "orientation-anisotropic": {orientation: tilted},
             "scale-negative": dict(Scale=-6.3, Anisotropy=0.2),
             "scale-per-point": dict(Scale=sweep("X", 2.0, 9.0)),
+            "constant-vector": dict(Vector=_constant_vector(0.3, -0.6, 0.45), Frequency=sweep("X", 0.5, 6.0),
+                                    Anisotropy=sweep("Y", 0.0, 1.0)),
         }
         for name, inputs in variants.items():
             for out in ("Value", "Phase"):

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from ember.engine.nodes import hash as H
+from ember.engine.nodes import voronoi as voronoi_module
 
 pytestmark = pytest.mark.blender
 
@@ -123,6 +124,32 @@ def test_negative_coordinates_and_other_parameters():
         cases[f"{dims}-randomness-per-point"] = voronoi(dims, "F2", "Color", Randomness=sweep("Y", -0.2, 1.3))
         cases[f"{dims}-scale-per-point"] = voronoi(dims, "F1", outputs[-1], Scale=sweep("X", 3.0, 12.0))
         cases[f"{dims}-scale-negative"] = voronoi(dims, "F1", outputs[-1], Scale=-7.7)
+        cases[f"{dims}-constant-vector"] = voronoi(dims, "F2", "Distance", Vector=_constant_vector(0.3, -0.6, 0.45),
+                                                   W=0.7, Randomness=sweep("X", 0.0, 1.0))
+    _check(cases)
+
+
+def _constant_vector(x, y, z):
+    def build(nt):
+        c = nt.nodes.new("ShaderNodeCombineXYZ")
+        for axis, value in zip("XYZ", (x, y, z)):
+            c.inputs[axis].default_value = value
+        return c.outputs[0]
+    return build
+
+
+def test_points_in_chunks(monkeypatch):
+    """Batches larger than a chunk go through in parts (here of 300 points, so the last part
+    is short), per-point and constant inputs alike."""
+    monkeypatch.setattr(voronoi_module, "CHUNK", 300)
+    cases = {}
+    for dims, outputs in OUTPUTS.items():
+        for feature in FEATURES:
+            cases[f"{dims}-{feature}"] = voronoi(dims, feature, outputs[-1], Detail=sweep("X", 0.0, 2.0),
+                                                 normalize=True)
+        cases[f"{dims}-constant-vector"] = voronoi(dims, "SMOOTH_F1", "Color", Vector=_constant_vector(0.3, -0.6, 0.45),
+                                                   W=0.7, Randomness=sweep("X", 0.0, 1.0))
+        cases[f"{dims}-edge"] = voronoi(dims, "DISTANCE_TO_EDGE", "Distance", Detail=1.5)
     _check(cases)
 
 

@@ -102,9 +102,9 @@ def gabor_noise(coord32, frequency, isotropy, orientation):
     return phasor_x, phasor_y
 
 
-def _per_point(x, n: int):
-    x = np.asarray(x, np.float64)
-    return x.reshape(-1) if x.ndim and x.shape[0] == n else x
+def _f64(x) -> np.ndarray:
+    """A float32 input as the float64 of the very value Cycles reads."""
+    return np.asarray(x, np.float32).astype(np.float64)
 
 
 @node("ShaderNodeTexGabor", "Texture", reads=("generated",))
@@ -114,22 +114,23 @@ def gabor_texture(node, inputs, state):
     vector_input = node.input("Vector")
     vector = state.generated if vector_input is not None and vector_input.link is None else inputs["Vector"]
     scale = np.asarray(inputs["Scale"], np.float32)
-    coord32 = np.asarray(triple(vector), np.float32) * scale[..., None]
+    coord = np.asarray(triple(vector), np.float32) * scale[..., None]
     three_d = node.prop("gabor_type", "2D") == "3D"
     d = 3 if three_d else 2
-    shape = coord32.shape[:-1]
-    coord32 = coord32.reshape(-1, 3)
-    n = coord32.shape[0]
-    coord32 = tuple(np.ascontiguousarray(coord32[:, a]) for a in range(d))
-    frequency = np.maximum(0.001, _per_point(np.asarray(inputs["Frequency"], np.float32), n))
-    isotropy = 1.0 - np.clip(_per_point(np.asarray(inputs["Anisotropy"], np.float32), n), 0.0, 1.0)
+    frequency = np.maximum(0.001, _f64(inputs["Frequency"]))
+    isotropy = 1.0 - np.clip(_f64(inputs["Anisotropy"]), 0.0, 1.0)
     if three_d:
-        o = np.asarray(triple(inputs["Orientation 3D"]), np.float32).astype(np.float64)
+        o = _f64(triple(inputs["Orientation 3D"]))
         with np.errstate(all="ignore"):
-            orientation = o / np.sqrt(np.sum(o * o, axis=-1, keepdims=True))
-        orientation = tuple(_per_point(orientation[..., a], n) for a in range(3))
+            o = o / np.sqrt(np.sum(o * o, axis=-1, keepdims=True))
+        orientation = tuple(o[..., a] for a in range(3))
     else:
-        orientation = _per_point(np.asarray(inputs["Orientation 2D"], np.float32), n)
+        orientation = _f64(inputs["Orientation 2D"])
+    # () where every input is constant, else (N,): the coordinates go per point if anything is
+    parameters = (frequency, isotropy) + (orientation if three_d else (orientation,))
+    shape = np.broadcast_shapes(coord.shape[:-1], *(np.shape(v) for v in parameters))
+    coord = np.broadcast_to(coord, shape + (3,)).reshape(-1, 3)
+    coord32 = tuple(np.ascontiguousarray(coord[:, a]) for a in range(d))
     with np.errstate(all="ignore"):
         x, y = gabor_noise(coord32, frequency, isotropy, orientation)
     norm = NORMALIZATION_3D if three_d else NORMALIZATION_2D

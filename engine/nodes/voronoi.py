@@ -246,8 +246,6 @@ class Params:
     """The node's settings and inputs as Cycles clamps them (svm_node_tex_voronoi); each input
     0-d or per point (N,), float64 holding Cycles' float32 values."""
 
-    INPUTS = ("Scale", "Detail", "Roughness", "Lacunarity", "Smoothness", "Exponent", "Randomness")
-
     def __init__(self, node, inputs: dict, d: int):
         self.d = d
         self.feature = node.prop("feature", "F1")
