@@ -129,6 +129,44 @@ def test_negative_coordinates_and_other_parameters():
     _check(cases)
 
 
+def _snapped(nt, axis: str):
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    split = nt.nodes.new("ShaderNodeSeparateXYZ")
+    nt.links.new(coord.outputs["UV"], split.inputs["Vector"])
+    m = nt.nodes.new("ShaderNodeMath")
+    m.operation = "SNAP"
+    nt.links.new(split.outputs[axis], m.inputs[0])
+    m.inputs[1].default_value = 1.0 / 4096
+    return m.outputs[0]
+
+
+def snapped_uv(nt):
+    """The UV coordinate snapped to multiples of 1/4096 (at z 0.5): the same float32 numbers in
+    Cycles and here. Interpolated coordinates differ from Cycles' by a float32 rounding, which
+    scales of 10^4 (or a Detail of 15 at Roughness 1) make larger than the tolerance; on
+    snapped ones what is left is the node's own arithmetic."""
+    c = nt.nodes.new("ShaderNodeCombineXYZ")
+    for axis in "XY":
+        nt.links.new(_snapped(nt, axis), c.inputs[axis])
+    c.inputs["Z"].default_value = 0.5
+    return c.outputs[0]
+
+
+def test_float32_coordinates_at_large_scales():
+    """Cells picked by float32 coordinates as Cycles picks them: Scale 10^4 (coordinates whose
+    float32 steps are 1e-3) and 15 octaves at full Roughness (the last at 2.3^15 times the
+    scale, the octave scales multiplied up in float32)."""
+    cases = {}
+    for dims in ("1D", "2D", "3D", "4D"):
+        for feature in FEATURES + ("DISTANCE_TO_EDGE",):
+            cases[f"{dims}-{feature}-scale1e4"] = voronoi(dims, feature, "Distance", Scale=10000.3, Vector=snapped_uv,
+                                                          W=lambda nt: _snapped(nt, "Y"))
+        cases[f"{dims}-detail15"] = voronoi(dims, "F1", "Distance", Detail=15.0, Roughness=1.0, Lacunarity=2.3,
+                                            Vector=snapped_uv,
+                                            W=lambda nt: _snapped(nt, "Y"))
+    _check(cases)
+
+
 def _constant_vector(x, y, z):
     def build(nt):
         c = nt.nodes.new("ShaderNodeCombineXYZ")
