@@ -197,7 +197,10 @@ def test_fractal_octaves_and_normalize():
         for feature in FEATURES + ("DISTANCE_TO_EDGE",):
             for normalize in (False, True):
                 for detail in (2.0, 2.6):
-                    for out in outputs if feature != "DISTANCE_TO_EDGE" else ("Distance",):
+                    # Normalize divides Distance and Color only
+                    for out in outputs if not normalize else ("Distance", "Color"):
+                        if feature == "DISTANCE_TO_EDGE" and out != "Distance":
+                            continue
                         cases[f"{dims}-{feature}-detail{detail}-norm{normalize}-{out}"] = voronoi(
                             dims, feature, out, normalize=normalize, Scale=3.1, Detail=detail,
                             Roughness=0.63, Lacunarity=2.3)
