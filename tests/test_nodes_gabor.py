@@ -46,7 +46,8 @@ def test_gabor_matches_cycles():
     for kind in ("2D", "3D"):
         orientation = "Orientation 2D" if kind == "2D" else "Orientation 3D"
         tilted = 2.1 if kind == "2D" else (0.2, -0.7, 0.4)
-        per_point = sweep("X", -1.0, 4.0) if kind == "2D" else _direction(sweep("X", -1.0, 1.0), 0.3, sweep("Y", -0.5, 0.8))
+        per_point = (sweep("X", -1.0, 4.0) if kind == "2D"
+                     else _direction(sweep("X", -1.0, 1.0), 0.3, sweep("Y", -0.5, 0.8)))
         for out in OUTPUTS:
             cases[f"{kind}-{out}"] = gabor(kind, out)
             cases[f"{kind}-{out}-negative"] = gabor(kind, out, Vector=negative, Scale=1.9)
