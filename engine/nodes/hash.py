@@ -133,3 +133,91 @@ def hash_float_to_float3(*k) -> tuple:
         return hash_float(x, y, z), hash_float(x, y, z, 1.0), hash_float(x, y, z, 2.0)
     x, y, z, w = k
     return hash_float(x, y, z, w), hash_float(z, x, w, y), hash_float(w, z, y, x)
+
+
+def hash_float_to_float2(*k) -> tuple:
+    """hash_float3_to_float2, hash_float4_to_float2: the key and a permutation of it."""
+    if len(k) == 3:
+        x, y, z = k
+        return hash_float(x, y, z), hash_float(z, x, y)
+    x, y, z, w = k
+    return hash_float(x, y, z, w), hash_float(z, x, w, y)
+
+
+# --- PCG on int32 -----------------------------------------------------------------------------
+
+# int32-typed, so 0-d keys stay int32 too (a Python int would widen them to int64).
+_INV_2_31 = 2.0 ** -31
+_LCG_MUL = np.int32(1664525)
+_LCG_ADD = np.int32(1013904223)
+_SHIFT = np.int32(16)
+_LOW31 = np.int32(0x7FFFFFFF)
+
+
+def _i32(x) -> np.ndarray:
+    return np.asarray(x).astype(np.int32)
+
+
+def hash_pcg2d_i(x, y):
+    with np.errstate(over="ignore"):
+        x = _i32(x) * _LCG_MUL + _LCG_ADD
+        y = _i32(y) * _LCG_MUL + _LCG_ADD
+        x = x + y * _LCG_MUL
+        y = y + x * _LCG_MUL
+        x, y = x ^ (x >> _SHIFT), y ^ (y >> _SHIFT)
+        x = x + y * _LCG_MUL
+        y = y + x * _LCG_MUL
+        return x & _LOW31, y & _LOW31
+
+
+def hash_pcg3d_i(x, y, z):
+    with np.errstate(over="ignore"):
+        x, y, z = (_i32(v) * _LCG_MUL + _LCG_ADD for v in (x, y, z))
+        x = x + y * z
+        y = y + z * x
+        z = z + x * y
+        x, y, z = x ^ (x >> _SHIFT), y ^ (y >> _SHIFT), z ^ (z >> _SHIFT)
+        x = x + y * z
+        y = y + z * x
+        z = z + x * y
+        return x & _LOW31, y & _LOW31, z & _LOW31
+
+
+def hash_pcg4d_i(x, y, z, w):
+    with np.errstate(over="ignore"):
+        x, y, z, w = (_i32(v) * _LCG_MUL + _LCG_ADD for v in (x, y, z, w))
+        x = x + y * w
+        y = y + z * x
+        z = z + x * y
+        w = w + y * z
+        x, y, z, w = x ^ (x >> _SHIFT), y ^ (y >> _SHIFT), z ^ (z >> _SHIFT), w ^ (w >> _SHIFT)
+        x = x + y * w
+        y = y + z * x
+        z = z + x * y
+        w = w + y * z
+        return x & _LOW31, y & _LOW31, z & _LOW31, w & _LOW31
+
+
+def _int_to_unit(h) -> np.ndarray:
+    """(float)h / 2^31 for h in [0, 2^31): the cast rounds to float32."""
+    return h.astype(np.float32).astype(np.float64) * _INV_2_31
+
+
+def hash_int2_to_float2(x, y):
+    return tuple(_int_to_unit(h) for h in hash_pcg2d_i(x, y))
+
+
+def hash_int3_to_float3(x, y, z):
+    return tuple(_int_to_unit(h) for h in hash_pcg3d_i(x, y, z))
+
+
+def hash_int4_to_float4(x, y, z, w):
+    return tuple(_int_to_unit(h) for h in hash_pcg4d_i(x, y, z, w))
+
+
+def hash_int2_to_float3(x, y):
+    return hash_int3_to_float3(x, y, 0)
+
+
+def hash_int4_to_float3(x, y, z, w):
+    return hash_int4_to_float4(x, y, z, w)[:3]

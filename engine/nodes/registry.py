@@ -3,7 +3,9 @@ them. The coverage table (README) and the compiler read it; a kind not listed he
 reported and falls back (engine/nodes/program.py)."""
 from __future__ import annotations
 
-from . import closures, color, curves, environment, map_range, mapping, math, sky, textures, vector, vector_math
+from . import (closures, color, curves, environment, gabor, map_range, mapping, math, sky, textures, vector,
+               vector_math, voronoi)
 
-MODULES = (closures, math, vector, vector_math, map_range, mapping, color, curves, textures, sky, environment)
+MODULES = (closures, math, vector, vector_math, map_range, mapping, color, curves, textures, voronoi, gabor, sky,
+           environment)
 REGISTRY = {t.kind: t for module in MODULES for t in module.NODES}
