@@ -27,6 +27,8 @@ from ember.engine.nodes.state import ShadingState
 
 SIZE = 32
 SPACING = 3.0
+# Objects per bake call: Blender's bake time grows faster than its number of objects.
+BAKE_CHUNK = 24
 # Where in a texel Blender's baker puts its point: the centre, nudged by these fractions of a
 # texel in u and v (measured from a baked UV coordinate: the same at 16 to 128 texels).
 BAKE_OFFSET = (0.001, 0.002)
@@ -48,11 +50,22 @@ class Placed:
     scale: tuple = (1.0, 1.0, 1.0)
 
 
-def _plane(k: int, case):
+def _plane_mesh():
+    """Blender's default plane: 2 m square, UV map corner to corner (what primitive_plane_add
+    makes), built without operators (each costs a scene update)."""
+    mesh = bpy.data.meshes.new("plane")
+    mesh.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [], [(0, 1, 2, 3)])
+    uv = mesh.uv_layers.new(name="UVMap")
+    for loop, corner in zip(uv.data, ((0, 0), (1, 0), (1, 1), (0, 1))):
+        loop.uv = corner
+    return mesh
+
+
+def _plane(k: int, case, mesh):
     place = case if isinstance(case, Placed) else Placed(case)
-    bpy.ops.mesh.primitive_plane_add(size=2.0, location=(SPACING * k, 0.0, 0.0))
-    ob = bpy.context.active_object
-    ob.location = tuple(a + b for a, b in zip(ob.location, place.location))
+    ob = bpy.data.objects.new(f"plane_{k}", mesh.copy())
+    bpy.context.scene.collection.objects.link(ob)
+    ob.location = tuple(a + b for a, b in zip((SPACING * k, 0.0, 0.0), place.location))
     ob.rotation_euler, ob.scale = place.rotation, place.scale
     return ob, place.build
 
@@ -151,9 +164,10 @@ def bake(cases: dict, size: int = SIZE, view_from: str = "ABOVE_SURFACE") -> dic
     scene.cycles.samples = 1
     scene.render.bake.view_from = view_from
     camera = _camera()
+    mesh = _plane_mesh()
     made = {}
     for k, (name, case) in enumerate(cases.items()):
-        ob, build = _plane(k, case)
+        ob, build = _plane(k, case, mesh)
         mat, out = _material(name, build)
         image = bpy.data.images.new(f"bake_{k}", size, size, float_buffer=True)
         tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
@@ -161,11 +175,13 @@ def bake(cases: dict, size: int = SIZE, view_from: str = "ABOVE_SURFACE") -> dic
         mat.node_tree.nodes.active = tex
         ob.data.materials.append(mat)
         made[name] = (ob, out, image)
-    bpy.ops.object.select_all(action="DESELECT")
-    for ob, _, _ in made.values():
-        ob.select_set(True)
-    bpy.context.view_layer.objects.active = next(iter(made.values()))[0]
-    bpy.ops.object.bake(type="EMIT")
+    objects = [ob for ob, _, _ in made.values()]
+    for first in range(0, len(objects), BAKE_CHUNK):
+        bpy.ops.object.select_all(action="DESELECT")
+        for ob in objects[first:first + BAKE_CHUNK]:
+            ob.select_set(True)
+        bpy.context.view_layer.objects.active = objects[first]
+        bpy.ops.object.bake(type="EMIT")
     bpy.context.view_layer.update()
     world_from_camera = _world_from_camera(camera)
     results = {}
