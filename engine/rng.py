@@ -31,6 +31,8 @@ with masks and then the bytes: in NumPy that is faster than four byte-table gath
 """
 import numpy as np
 
+from .settings import DECLARED
+
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
@@ -45,7 +47,7 @@ _K_DOMAIN = np.uint64(0x8CB92BA72F3D8DD7)  # separates the streams of different 
 # irradiance-cache records pixel = record index and sample = gather ray.
 CAMERA, PHOTONS, GATHER, RECORDS = 0, 1, 2, 3
 
-PATTERNS = ("sobol", "random")
+PATTERNS = DECLARED["pattern"].values
 
 
 def _mix(x: np.ndarray) -> np.ndarray:

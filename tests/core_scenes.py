@@ -78,7 +78,9 @@ def uv_sphere(center, radius, n_theta=24, n_phi=48):
 
 
 def settings(**kw):
-    base = dict(width=16, height=16, samples=8, seed=1, filter="BOX", filter_width=1.0, batch_size=4096)
+    """Small renders by the path tracer (the core's default is `auto`, which may choose another)."""
+    base = dict(width=16, height=16, samples=8, seed=1, filter="BOX", filter_width=1.0, batch_size=4096,
+                integrator="path")
     base.update(kw)
     return Settings(**base)
 

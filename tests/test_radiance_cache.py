@@ -341,8 +341,8 @@ def test_agrees_with_the_path_tracer_on_a_rough_glossy_box():
 
 
 def test_order_is_validated():
-    from ember.engine.validation import icache_problems
-    assert icache_problems(settings(icache_radiance_order=7)) == []
-    for bad in (1, 9):
-        (msg,) = icache_problems(settings(icache_radiance_order=bad))
-        assert "order must be in 2-8" in msg
+    from ember.engine.validation import settings_problems
+    assert settings_problems(settings(icache_radiance_order=7)) == []
+    for bad, words in ((1, "at least 2"), (9, "at most 8")):
+        (msg,) = settings_problems(settings(icache_radiance_order=bad))
+        assert f"icache radiance order must be {words}" in msg

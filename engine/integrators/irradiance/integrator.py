@@ -56,8 +56,6 @@ from .hemisphere import cell_directions, gradient_to_world, record_terms
 from . import radiance
 from ...layout import BatchLayout
 
-GATHER_MODES = ("photon", "path")
-ICACHE_VIEWS = ("full", "records", "indirect")
 # The support a R_i of a record, in pixel footprints at the record (Krivanek and Gautron's
 # screen-space clamp; Mitsuba 0.6 uses 3 and 20 on R_i with a weight whose support is R_i)...
 MIN_PX, MAX_PX = 3.0, 20.0

@@ -49,9 +49,10 @@ import os
 import numpy as np
 
 from ...errors import EmberError
+from ...settings import DECLARED
 from ...vec import dot, take
 
-KERNELS = ("uniform", "cone", "epanechnikov")
+KERNELS = DECLARED["photon_kernel"].values
 CONE_K = 1.1                 # Jensen's cone filter constant (k >= 1)
 COS_NORMAL_MIN = 0.1         # photon normal . query normal must exceed this (Mitsuba 0.6)
 _SNORM16 = 32767.0
