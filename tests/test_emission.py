@@ -133,7 +133,7 @@ def _dir_fit(em, e, axis, pdf_of_d, mu_edges=None, n_phi=16):
 def _pdf_dir(em, light, o=None):
     def f(d):
         oo = np.zeros_like(d) if o is None else np.broadcast_to(o, d.shape)
-        return em.pdf(np.full(len(d), light), oo, d)[1]
+        return em.pdf(np.full(len(d), light), oo, d).dir
     return f
 
 
@@ -149,7 +149,7 @@ def case_rect_pos():
 
     def density(x, y):
         o = ls.lights.position[0] + np.stack([x.ravel(), y.ravel(), 0 * x.ravel()], axis=1)
-        return em.pdf(np.zeros(x.size, int), o, np.tile([0, 0, -1.0], (x.size, 1)))[0].reshape(x.shape)
+        return em.pdf(np.zeros(x.size, int), o, np.tile([0, 0, -1.0], (x.size, 1))).pos.reshape(x.shape)
 
     return observed, expected_counts_2d(density, x_edges, y_edges, N_CHI2)
 
@@ -169,7 +169,7 @@ def case_ellipse_pos():
     assert np.abs(q @ f[2]).max() < 1e-12
     hx, hy = ls.lights.size[0]
     u, v = q @ f[0] / hx, q @ f[1] / hy
-    pdf_pos = em.pdf(np.zeros(1, int), e.o[:1], -f[2][None])[0][0]
+    pdf_pos = em.pdf(np.zeros(1, int), e.o[:1], -f[2][None]).pos[0]
     rho2, ang = u * u + v * v, np.mod(np.arctan2(v, u), 2 * np.pi)
     edges_r, edges_a = np.linspace(0, 1, 11), np.linspace(0, 2 * np.pi, 13)
     observed = np.histogram2d(rho2, ang, bins=[edges_r, edges_a])[0]
@@ -198,7 +198,7 @@ def case_triangle_pos():
     edges = np.linspace(0, 1, 11)
     observed = np.histogram2d(s, w, bins=[edges, edges])[0]
     light = np.full(1, ls.n_analytic)
-    pdf_pos = em.pdf(light, e.o[:1], e.d[:1])[0][0]
+    pdf_pos = em.pdf(light, e.o[:1], e.d[:1]).pos[0]
     area = ls.tri_area[0]
     return observed, expected_counts_2d(lambda s, w: pdf_pos * 2 * area * s, edges, edges, first.sum())
 
@@ -266,7 +266,7 @@ def _sphere_pos_case(name, seed):
         s = np.sqrt(np.maximum(0.0, 1 - mu * mu))
         nn = (s * np.cos(ph))[..., None] * tt[0] + (s * np.sin(ph))[..., None] * bb[0] + mu[..., None] * d0[0]
         o = c + r * nn.reshape(-1, 3)
-        return r * r * em.pdf(np.zeros(len(o), int), o, np.broadcast_to(d0, o.shape))[0].reshape(mu.shape)
+        return r * r * em.pdf(np.zeros(len(o), int), o, np.broadcast_to(d0, o.shape)).pos.reshape(mu.shape)
 
     return observed, expected_counts_2d(density, mu_edges, phi_edges, N_CHI2)
 
@@ -283,7 +283,7 @@ def _beam_pos_case(name, seed):
     rho2, ang = (x * x + y * y) / R_SCENE**2, np.mod(np.arctan2(y, x), 2 * np.pi)
     edges_r, edges_a = np.linspace(0, 1, 11), np.linspace(0, 2 * np.pi, 13)
     observed = np.histogram2d(rho2, ang, bins=[edges_r, edges_a])[0]
-    pdf_pos = em.pdf(e.light[:1], e.o[:1], e.d[:1])[0][0]
+    pdf_pos = em.pdf(e.light[:1], e.o[:1], e.d[:1]).pos[0]
     return observed, expected_counts_2d(lambda r, a: pdf_pos * R_SCENE**2 / 2 + 0 * r, edges_r, edges_a, N_CHI2)
 
 
@@ -300,7 +300,7 @@ def case_soft_pos():
     rho2, ang = (x * x + y * y) / r**2, np.mod(np.arctan2(y, x), 2 * np.pi)
     edges_r, edges_a = np.linspace(0, 1, 11), np.linspace(0, 2 * np.pi, 13)
     observed = np.histogram2d(rho2, ang, bins=[edges_r, edges_a])[0]
-    pdf_pos = em.pdf(e.light[:1], e.o[:1], e.d[:1])[0][0]
+    pdf_pos = em.pdf(e.light[:1], e.o[:1], e.d[:1]).pos[0]
     return observed, expected_counts_2d(lambda a, b: pdf_pos * r * r / 2 + 0 * a, edges_r, edges_a, N_CHI2)
 
 
@@ -324,7 +324,7 @@ def case_sun_dir():
         mu = 1 - omc_
         s = np.sqrt(np.maximum(0.0, omc_ * (2 - omc_)))
         w = (s * np.cos(ph))[..., None] * t + (s * np.sin(ph))[..., None] * b + mu[..., None] * z
-        return omc_max * em.pdf(np.zeros(x.size, int), np.zeros((x.size, 3)), -w.reshape(-1, 3))[1].reshape(x.shape)
+        return omc_max * em.pdf(np.zeros(x.size, int), np.zeros((x.size, 3)), -w.reshape(-1, 3)).dir.reshape(x.shape)
 
     return observed, expected_counts_2d(density, edges_r, edges_a, N_CHI2)
 
@@ -342,7 +342,7 @@ def case_environment_dir():
     def density(ph, mu):
         s = np.sqrt(np.maximum(0.0, 1 - mu * mu))
         w = np.stack([s * np.cos(ph), s * np.sin(ph), mu], axis=-1).reshape(-1, 3)
-        return em.pdf(np.zeros(len(w), int), np.zeros_like(w), -w)[1].reshape(mu.shape)
+        return em.pdf(np.zeros(len(w), int), np.zeros_like(w), -w).dir.reshape(mu.shape)
 
     expected = expected_counts_2d(density, phi_edges, cos_edges, N_CHI2)
     assert expected.min() > 0  # every pixel can send photons (the compensated table has zeros)
@@ -442,8 +442,8 @@ def test_flux_is_le_cos_over_the_pdfs(name):
     em = emitter(ls)
     e = shoot(em, 20_000, 30)
     assert e.valid.mean() > 0.999
-    pdf_pos, pdf_dir = em.pdf(e.light, e.o, e.d)
-    expect = emitted_radiance_cos(ls, e) / (em.pmf(e.light) * pdf_pos * pdf_dir)[:, None]
+    pdf = em.pdf(e.light, e.o, e.d)
+    expect = emitted_radiance_cos(ls, e) / (em.pmf(e.light) * pdf.pos * pdf.dir)[:, None]
     v = e.valid
     np.testing.assert_allclose(e.flux[v], expect[v], rtol=1e-9, atol=0)
     if name not in ("environment", "triangles", "mixed"):  # one emitter of uniform Le

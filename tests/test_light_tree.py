@@ -123,10 +123,10 @@ def test_sample_pdf_is_what_a_hit_reports(ls):
     np.testing.assert_allclose(ls.pdf_triangle_hit(s.target_prim[tri], p[tri], t, cos), s.pdf[tri], rtol=1e-6)
     checked = 0
     for i in ls.hittable.tolist():
-        hit, _, pdf_dir = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(n, np.inf))
-        mine = np.flatnonzero(s.valid & hit & (s.target_prim < 0) & s.finite)
+        h = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(n, np.inf))
+        mine = np.flatnonzero(s.valid & h.hit & (s.target_prim < 0) & s.finite)
         mine = mine[np.linalg.norm(s.target[mine] - ls.lights.position[i], axis=1) < 1.0]
-        np.testing.assert_allclose(ls.pmf(np.full(len(mine), i), p[mine]) * pdf_dir[mine], s.pdf[mine], rtol=1e-6)
+        np.testing.assert_allclose(ls.pmf(np.full(len(mine), i), p[mine]) * h.pdf[mine], s.pdf[mine], rtol=1e-6)
         checked += len(mine)
     assert checked > 100
     # emission_along weighs what the rays find with that same pmf, at the rays' origins.
@@ -134,10 +134,10 @@ def test_sample_pdf_is_what_a_hit_reports(ls):
     found = ls.emission_along(p, s.wi, np.full(n, np.inf), pdf_bsdf, np.ones(n, bool), np.zeros(n, bool))
     expect = np.zeros((n, 3))
     for i in ls.hittable.tolist():
-        hit, gain, pdf_dir = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(n, np.inf))
-        r = np.flatnonzero(hit)
-        w = pdf_bsdf[r] / (pdf_bsdf[r] + ls.pmf(np.full(len(r), i), p[r]) * pdf_dir[r])
-        expect[r] += (gain[r] * w)[:, None] * ls.lights.Le[i]
+        h = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(n, np.inf))
+        r = np.flatnonzero(h.hit)
+        w = pdf_bsdf[r] / (pdf_bsdf[r] + ls.pmf(np.full(len(r), i), p[r]) * h.pdf[r])
+        expect[r] += (h.gain[r] * w)[:, None] * ls.lights.Le[i]
     assert np.count_nonzero(expect[:, 0]) > 100
     np.testing.assert_allclose(found, expect, rtol=1e-9)
 

@@ -254,8 +254,8 @@ def _hit_density(ls, i):
 
     def density(d):
         o = np.broadcast_to(P0, d.shape)
-        hit, _, pdf_dir = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, o, d, np.full(len(d), np.inf))
-        return np.where(hit, pdf_dir, 0.0) * ls.pmf(np.array([i]))[0]
+        h = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, o, d, np.full(len(d), np.inf))
+        return np.where(h.hit, h.pdf, 0.0) * ls.pmf(np.array([i]))[0]
     return density
 
 
@@ -269,7 +269,7 @@ def _light_cone_fit(ls, i, seed, cells=24):
     axis = np.asarray(ls.lights.position[i]) - P0
     axis /= np.linalg.norm(axis)
     from ember.engine.lights import shapes
-    hit, _, _ = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(N, np.inf))
+    hit = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(N, np.inf)).hit
     mine = s.valid & hit  # the samples of light i (the lights do not overlap as seen from P0)
     assert (s.valid & ~hit & ((s.wi @ axis) > 0.99)).sum() == 0
     cos = s.wi[mine] @ axis
@@ -308,8 +308,8 @@ def _sun_fit(seed, half_angle=0.2, cells=24):
 
     def density(sv, pv):
         d = _direction(1.0 - sv.ravel() * one_minus_max, pv.ravel(), z)
-        hit, _, pdf_dir = shapes.sun_hit(ls.lights, 0, d)
-        return (np.where(hit, pdf_dir, 0.0) * one_minus_max).reshape(sv.shape)
+        h = shapes.sun_hit(ls.lights, 0, d)
+        return (np.where(h.hit, h.pdf, 0.0) * one_minus_max).reshape(sv.shape)
 
     return observed, expected_counts_2d(density, s_edges, p_edges, N)
 
@@ -419,7 +419,7 @@ def test_selection_pmf_is_proportional_to_power():
         rows = np.flatnonzero(s.valid & (np.argmax(np.stack([s.wi @ (np.asarray(ls.lights.position[j]) - P0)
                                                              / np.linalg.norm(np.asarray(ls.lights.position[j]) - P0)
                                                              for j in range(3)]), axis=0) == i))
-        hit, _, pdf_dir = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, np.tile(P0, (len(rows), 1)),
-                                              s.wi[rows], np.full(len(rows), np.inf))
-        assert hit.all()
-        np.testing.assert_allclose(s.pdf[rows], pmf[i] * pdf_dir, rtol=1e-6)
+        h = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, np.tile(P0, (len(rows), 1)),
+                                s.wi[rows], np.full(len(rows), np.inf))
+        assert h.hit.all()
+        np.testing.assert_allclose(s.pdf[rows], pmf[i] * h.pdf, rtol=1e-6)
