@@ -17,7 +17,7 @@ from ember.engine.scene import LIGHT_POINT, LIGHT_SUN, Lights, Materials, Mesh, 
 from ember.engine.session import RenderSession
 
 from core_scenes import perspective, quads_mesh, settings
-from stats import chi2_test, expected_counts_2d, sidak_alpha, spherical_coordinates
+from stats import ChiSquareTest, Mapped, Sphere, sidak_alpha
 
 N = 200_000
 H, W = 16, 32
@@ -57,48 +57,44 @@ def random_map(seed, h=H, w=W):
 
 
 # ----------------------------------------------------------------------------------------------
-# Chi-square of the sampler: histogram env-space directions on the pixel grid, expected counts
-# from the claimed pdf(d). Equirectangular pixels are cells of (phi, cos theta) (d omega =
-# dphi dcos), so the pdf, constant per pixel, is integrated exactly.
+# Chi-square of the sampler: env-space directions on the pixel grid against the claimed pdf(d).
+# Equirectangular pixels are cells of (cos theta, phi) (d omega = dcos dphi), so the pdf,
+# constant per pixel, is integrated exactly.
 
-PHI_EDGES = np.linspace(0.0, 2.0 * np.pi, W + 1)
-COS_EDGES = np.cos(np.linspace(np.pi, 0.0, H + 1))  # ascending cos theta = pixel row edges
+PIXEL_GRID = (np.cos(np.linspace(np.pi, 0.0, H + 1)), W)  # ascending cos theta = pixel row edges
 
 
 def _equirect_fit(env, seed):
-    s = env.sample(_u(seed))
-    wi = s.wi
-    assert s.valid.all() and np.all(s.pdf > 0)
-    e = wi @ env.env_from_world.T  # rigid maps only: env directions
-    cos_t, phi = spherical_coordinates(e)
-    observed = np.histogram2d(phi, np.clip(cos_t, -1, 1), bins=[PHI_EDGES, COS_EDGES])[0]
+    def sampler(u):
+        s = env.sample(u)
+        assert s.valid.all() and np.all(s.pdf > 0)
+        return s.wi
 
-    def density(phi, cos_t):
-        sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t**2))
-        e = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=-1).reshape(-1, 3)
-        return env.pdf(e @ env.world_from_env.T).reshape(phi.shape)
-
-    return observed, expected_counts_2d(density, PHI_EDGES, COS_EDGES, N)
+    # Rigid maps only: the frame's rows are the env axes in world space.
+    return ChiSquareTest(Sphere(frame=env.env_from_world), sampler, env.pdf, PIXEL_GRID, N, seed=seed)
 
 
 def _ball_fit(env, seed, n_cells=16):
-    """Mirror ball: histogram of the ball image coordinates (x, y); equal-area (d omega = 16
-    dx dy), the density is 16 pdf inside the ball, 0 outside (high-order quadrature for the rim)."""
-    s = env.sample(_u(seed))
-    e = s.wi[s.valid]
-    div = 2.0 * np.sqrt(np.maximum(0.5 * (1.0 - e[:, 1]), 0.0))
-    x, y = 0.5 * (e[:, 0] / div + 1.0), 0.5 * (1.0 - e[:, 2] / div)
-    edges = np.linspace(0.0, 1.0, n_cells + 1)
-    observed = np.histogram2d(x, y, bins=[edges, edges])[0]
+    """Mirror ball: the ball image coordinates (x, y); equal-area (d omega = 16 dx dy) inside
+    the ball, nothing outside (high-order quadrature for the rim). Corner samples are rejected."""
+    def coordinates(e):
+        div = 2.0 * np.sqrt(np.maximum(0.5 * (1.0 - e[:, 1]), 0.0))
+        return 0.5 * (e[:, 0] / div + 1.0), 0.5 * (1.0 - e[:, 2] / div)
 
-    def density(x, y):
+    def points(x, y):
         X, Z = 2.0 * x - 1.0, 1.0 - 2.0 * y
         r2 = X * X + Z * Z
+        inside = r2 < 1.0
         c = np.sqrt(np.maximum(1.0 - r2, 0.0))
-        d = np.stack([2 * c * X, 2 * r2 - 1, 2 * c * Z], axis=-1).reshape(-1, 3)
-        return np.where(r2 < 1.0, 16.0 * env.pdf(d).reshape(x.shape), 0.0)
+        d = np.where(inside[:, None], np.stack([2 * c * X, 2 * r2 - 1, 2 * c * Z], axis=-1), [0.0, 1.0, 0.0])
+        return d, np.where(inside, 16.0, 0.0)
 
-    return observed, expected_counts_2d(density, edges, edges, N, order=32)
+    def sampler(u):
+        s = env.sample(u)
+        return s.wi, s.valid
+
+    return ChiSquareTest(Mapped(((0, 1), (0, 1)), coordinates, points), sampler, env.pdf, n_cells, N, seed=seed,
+                         order=32)
 
 
 CHI2_CASES = {
@@ -116,14 +112,11 @@ CHI2_CASES = {
     "mirror_ball_hot_pixel": lambda: _ball_fit(
         EnvironmentMap(hot_pixel_map(4, 11, h=16, w=16), projection="MIRROR_BALL"), 11),
 }
-ALPHA = sidak_alpha(0.01, len(CHI2_CASES))
 
 
 @pytest.mark.parametrize("name", list(CHI2_CASES))
 def test_chi2_environment_sampler(name):
-    observed, expected = CHI2_CASES[name]()
-    p_value = chi2_test(observed, expected)
-    assert p_value >= ALPHA, f"{name}: p = {p_value:.3g} < alpha = {ALPHA:.3g}"
+    CHI2_CASES[name]().check(n_tests=len(CHI2_CASES))
 
 
 # ----------------------------------------------------------------------------------------------

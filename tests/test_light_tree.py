@@ -14,7 +14,7 @@ from ember.engine.scene import (LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT,
 from ember.engine.session import RenderSession
 
 from core_scenes import many_lights, quads_mesh
-from stats import chi2_test, sidak_alpha, z_test_p_values
+from stats import ChiSquareTest, Discrete, sidak_alpha, z_test_p_values
 
 ALPHA = 0.01
 POINTS = np.array([[0.3, 0.2, 0.0], [-6.0, 4.0, 0.0], [7.5, -7.5, 2.0]])
@@ -94,17 +94,19 @@ def test_pmf_sums_to_one_at_every_point(ls):
 
 
 def test_chosen_lights_follow_the_pmf(ls):
-    """Chi-square of the chosen light indices against N x pmf at three shading points."""
+    """Chi-square of the chosen light indices against the pmf at three shading points."""
     n = 200_000
-    rng = np.random.default_rng(11)
-    for p in POINTS:
+    for i, p in enumerate(POINTS):
         pts = np.tile(p, (n, 1))
-        index, pmf = ls._choose(pts, rng.random(n))
-        expected = n * ls.pmf(np.arange(ls.count), np.tile(p, (ls.count, 1)))
-        observed = np.bincount(index, minlength=ls.count)
-        assert chi2_test(observed, expected) > sidak_alpha(ALPHA, len(POINTS))
-        # What the sampler reports is the pmf of what it chose, at the same point.
-        np.testing.assert_allclose(pmf, ls.pmf(index, pts), rtol=1e-12)
+
+        def sampler(u):
+            index, pmf = ls._choose(pts, u[:, 0])
+            # What the sampler reports is the pmf of what it chose, at the same point.
+            np.testing.assert_allclose(pmf, ls.pmf(index, pts), rtol=1e-12)
+            return index
+
+        ChiSquareTest(Discrete(ls.count), sampler, lambda k: ls.pmf(k, np.tile(p, (len(k), 1))), n_samples=n,
+                      seed=[11, i], sample_dim=1, name=f"point {p}").check(ALPHA, n_tests=len(POINTS))
 
 
 def test_sample_pdf_is_what_a_hit_reports(ls):
