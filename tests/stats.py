@@ -6,7 +6,9 @@ core/math.h `chi2`): histogram the samples on a grid of cells in the domain's co
 integrate the claimed pdf over the same cells, pool cells whose expected count is below 5, fail
 outright where a sample lands where the pdf is 0, and correct the significance level for the
 number of tests with Sidak's formula. Unlike Mitsuba it also fails a pdf whose integral over
-the domain is not the share of samples the sampler keeps: rejected samples form one more cell.
+the domain is not the share of samples the sampler keeps (rejected samples form one more cell,
+and their number is tested on its own), checks the pdf at every sample, and integrates finely
+across the edges of the pdf's support.
 
     test = ChiSquareTest(Hemisphere(), sampler=sample_cosine_hemisphere,
                          pdf=lambda d: d[:, 2] / np.pi, resolution=(40, 80), n_samples=400_000, seed=1)
@@ -398,8 +400,11 @@ def _pearson(observed, expected, min_expected):
 class ChiSquareResult:
     """Outcome of ChiSquareTest.run.
 
-    p_value: of Pearson's statistic (0.0 after an outright failure); alpha: the per-test level
-    it was judged at (Sidak-corrected); passed: p_value >= alpha and no outright failure;
+    p_value: of Pearson's statistic (0.0 after an outright failure); p_kept: of the number of
+    samples rejected, binomial with the probability 1 - integral the pdf leaves for rejections
+    (1.0 for a sampler that rejects none); alpha: the per-test level (Sidak-corrected for the
+    family), each of the two p-values judged at Sidak's level for 2 tests within it when the
+    sampler can reject; passed: both p-values above their level and no outright failure;
     failure: why the test failed outright ('' if it did not); observed, expected: counts per
     cell, grid-shaped (expected = n_samples x integral of the pdf over the cell); rejected,
     rejected_expected: samples the sampler rejected and how many the pdf leaves room for
@@ -422,6 +427,7 @@ class ChiSquareResult:
     statistic: float = float("nan")
     dof: int = 0
     notes: tuple = ()
+    p_kept: float = 1.0
 
     def __repr__(self):
         return self.report(rows=0).splitlines()[0]
@@ -456,7 +462,7 @@ class ChiSquareResult:
         else:
             verdict = "accepted" if self.passed else "REJECTED"
             head += (f"{verdict}, p = {self.p_value:.3g} (level {self.alpha:.3g}), "
-                     f"chi2 = {self.statistic:.1f}, dof = {self.dof}")
+                     f"chi2 = {self.statistic:.1f}, dof = {self.dof}; p of the share kept = {self.p_kept:.3g}")
         lines = [head, f"  {self.n_samples} samples, {self.rejected} rejected by the sampler "
                        f"(pdf leaves room for {self.rejected_expected:.1f}); integral of the pdf "
                        f"over the domain {self.integral:.6f}"]
@@ -472,9 +478,10 @@ class ChiSquareTest:
         from numpy's default_rng(seed) (None for a test only given samples, see `fit`);
         valid (N,) bool marks the samples the sampler keeps:
         the others (zero weight, below the horizon...) are counted in one extra cell, whose
-        expected count is n_samples (1 - integral of the pdf over the domain). A sampler that
-        returns no mask claims to keep all: the pdf must then integrate to 1 (within
-        integral_tolerance).
+        expected count is n_samples (1 - integral of the pdf over the domain), and their number
+        is tested on its own too (binomial; a wrong normalisation is a 1-degree effect that
+        Pearson's statistic over many cells dilutes). A sampler that returns no mask claims to
+        keep all: the pdf must then integrate to 1 (within integral_tolerance).
     pdf(points) -> (M,): the density the sampler claims, w.r.t. the domain's measure.
     resolution: cells per axis (an int for all, a tuple per axis) or explicit edges per axis.
     n_samples, seed (an int or a sequence of ints), sample_dim.
@@ -531,11 +538,13 @@ class ChiSquareTest:
         rejected = int(n - valid.sum())
         rejected_expected = max(n - float(expected.sum()), 0.0)
 
-        def outcome(failure="", statistic=float("nan"), dof=0, p=0.0, observed=None):
+        def outcome(failure="", statistic=float("nan"), dof=0, p=0.0, observed=None, p_kept=1.0):
             if observed is None:
                 observed = np.zeros(expected.shape)
-            return ChiSquareResult(self.name, p, level, not failure and p >= level, failure, observed, expected,
-                                   rejected, rejected_expected, integral, n, edges, statistic, dof, tuple(notes))
+            each = sidak_alpha(level, 2) if rejections_possible else level
+            passed = not failure and p >= each and p_kept >= each
+            return ChiSquareResult(self.name, p, level, passed, failure, observed, expected, rejected,
+                                   rejected_expected, integral, n, edges, statistic, dof, tuple(notes), p_kept)
 
         if not np.all(np.isfinite(expected)) or np.any(expected < 0.0):
             return outcome("the pdf is negative or not finite at quadrature nodes")
@@ -587,7 +596,10 @@ class ChiSquareTest:
         if cells < np.count_nonzero(e):
             notes.append(f"{np.count_nonzero(e)} cells pooled into {cells} (expected counts >= "
                          f"{self.min_expected:g})")
-        return outcome("", statistic, dof, p, observed)
+        p_kept = 1.0
+        if rejections_possible and 0.0 < e[-1] < n:
+            p_kept = float(scipy_stats.binomtest(rejected, n, e[-1] / n).pvalue)
+        return outcome("", statistic, dof, p, observed, p_kept)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -566,12 +566,14 @@ def test_chi2_test_fails_outright_where_it_must():
         assert not r.passed and "integrates to" in r.failure, r.report()
     outside = ChiSquareTest(Interval(0.0, 1.0), lambda u: 1.01 * u[:, 0], _constant(1.0), 10, 1000, sample_dim=1)
     assert "outside the domain" in outside.run().failure
-    # Rejected samples form one more cell, expected n (1 - integral): the upper half of uniform
-    # directions on the sphere against 1 / (4 pi) on the hemisphere passes, 4 % more fails.
+    # Rejected samples form one more cell, expected n (1 - integral), and their number is tested
+    # on its own: the upper half of uniform directions on the sphere against 1 / (4 pi) on the
+    # hemisphere passes, 4 % more fails.
     upper = lambda u: (s.sample_uniform_sphere(u), s.sample_uniform_sphere(u)[:, 2] > 0.0)  # noqa: E731
     ok = ChiSquareTest(Hemisphere(), upper, _constant(0.25 / np.pi), (10, 20), 100_000, seed=3).check()
     assert ok.rejected_expected == pytest.approx(50_000) and 49_000 < ok.rejected < 51_000
-    too_much = ChiSquareTest(Hemisphere(), upper, _constant(1.04 * 0.25 / np.pi), (10, 20), 100_000, seed=3)
+    too_much = ChiSquareTest(Hemisphere(), upper, _constant(1.04 * 0.25 / np.pi), (10, 20), 100_000, seed=3).run()
+    assert not too_much.passed and too_much.p_kept < 1e-9
     with pytest.raises(AssertionError, match="rejected by the sampler"):  # the worst cell, in the report
         too_much.check()
 
