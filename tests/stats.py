@@ -488,12 +488,14 @@ class ChiSquareTest:
     order, refine: how the pdf is integrated over cells (see `integrate`); min_expected: cells
         expected to hold fewer samples are pooled (Mitsuba: 5).
     check_support: evaluate the pdf at every kept sample; one where it is 0 fails outright.
+        A cell of expected count 0 that holds samples then only shows a sliver of support the
+        quadrature missed (the pdf is positive at them): it is pooled, and the report says so.
     name: shown in the report.
 
-    Outright failures (p = 0): samples outside the domain's bounds, samples where the pdf is 0,
-    samples in a cell whose expected count is 0, a pdf that is negative or not finite at a
-    quadrature node, a pdf whose integral exceeds 1, or differs from 1 although nothing is
-    rejected. The expected counts are never rescaled to the observed total.
+    Outright failures (p = 0): samples outside the domain's bounds, samples where the pdf is 0
+    (without check_support: samples in a cell of expected count 0), a pdf that is negative or
+    not finite at a quadrature node, a pdf whose integral exceeds 1, or differs from 1 although
+    the sampler rejects nothing. The expected counts are never rescaled to the observed total.
     """
 
     def __init__(self, domain, sampler, pdf, resolution=None, n_samples=100_000, seed=0, sample_dim=2,
