@@ -34,7 +34,7 @@ from scipy.integrate import trapezoid
 from ember.engine import sampling
 from ember.engine.integrators.irradiance import hemisphere as H
 
-from stats import chi2_test, expected_counts_2d, sidak_alpha
+from stats import ChiSquareTest, Hemisphere, sidak_alpha
 
 LE = np.array([1.0, 0.5, 2.0])  # emitted radiance per channel (three channels, three scales)
 Z = np.array([0.0, 0.0, 1.0])
@@ -136,17 +136,16 @@ def test_directions_are_cosine_distributed():
     One direction per record, from a randomly chosen cell, so the samples are independent."""
     R = 20_000
     grids = [(4, 6), (9, 12)]
-    alpha = sidak_alpha(0.01, len(grids))
     for i, (M, N) in enumerate(grids):
-        w, _ = _directions(R, M, N, seed=20 + i)
-        rng = np.random.default_rng(40 + i)
-        pick = w[np.arange(R), rng.integers(0, M, R), rng.integers(0, N, R)]
-        cos_edges = np.linspace(0.0, 1.0, 11)
-        phi_edges = np.linspace(0.0, 2.0 * np.pi, 8)
-        phi = np.mod(np.arctan2(pick[:, 1], pick[:, 0]), 2.0 * np.pi)
-        observed = np.histogram2d(pick[:, 2], phi, bins=[cos_edges, phi_edges])[0]
-        expected = expected_counts_2d(lambda c, p: c / np.pi, cos_edges, phi_edges, R)
-        assert chi2_test(observed, expected) > alpha, (M, N)
+        def sampler(u, M=M, N=N):
+            # u[:, :2] choose the cell, u[:, 2:] the direction in it (the other cells' are unused).
+            j, k = np.minimum((u[:, 0] * M).astype(int), M - 1), np.minimum((u[:, 1] * N).astype(int), N - 1)
+            u_cells = np.zeros((R, M, N, 2))
+            u_cells[np.arange(R), j, k] = u[:, 2:]
+            return H.cell_directions(M, N, u_cells)[np.arange(R), j, k]
+
+        ChiSquareTest(Hemisphere(), sampler, lambda d: d[:, 2] / np.pi, (10, 7), R, seed=20 + i, sample_dim=4,
+                      name=f"{M} x {N} cells").check(n_tests=len(grids))
 
 
 # ----------------------------------------------------------------------------------------------
