@@ -27,6 +27,8 @@ from ...accel import offset_origin
 from ...vec import gatherer, take
 from .integrator import _GROUPS, _LIGHT, PHOTON_BYTES, PhotonIntegrator, _accumulate, _sample_rows
 from ..path import PathTracer
+from ..path_options import Gather
+from ..path_state import PathState
 from ..surface import towards
 from ...layout import BatchLayout
 
@@ -73,7 +75,7 @@ class CausticPathIntegrator(PhotonIntegrator):
         # what the BSDF sample above found directly). Its numbers: the GATHER stream at pixels
         # W*H and up (nothing else uses them).
         ps = rng.Sampler(s.seed, pixel[rows][g] + s.width * s.height, sample[rows][g], s.pattern, domain=rng.GATHER)
-        Lp = self.path_tracer.trace(ps, o64, o32, d, None, prim[x[g]], max_depth=max(s.max_depth - depth - 1, 0),
-                                    caustic_ends=self.stores)
+        Lp = self.path_tracer.trace(ps, PathState.rays(o64, o32, d, None, prim[x[g]]),
+                                    Gather(max_depth=max(s.max_depth - depth - 1, 0), caustic_ends=self.stores))
         _accumulate(L, rows[g], beta_g * Lp)
 
