@@ -469,7 +469,7 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
                                         Gather(first_emission=False, max_depth=max(s.max_depth - 1, 0),
                                                caustic_ends=self._caustic_ends(), t_first=t_first), stop)
         else:
-            Lr = self._trace_gather(sampler, K * MN, np.arange(K * MN), np.ones((K * MN, 3)), d, o64, o32, skip,
+            Lr = self._trace_gather(sampler, K * MN, PathState.rays(o64, o32, d, None, skip, beta=np.ones((K * MN, 3))),
                                     t_first=t_first)
         E, R, grad_r, grad_t = record_terms(Lr.reshape(K, M, N, 3), t_first.reshape(K, M, N))
         coeffs = {}
