@@ -45,6 +45,8 @@ from .. import rng, sampling
 from ..accel import Accel, offset_origin
 from ..integrators.base import TraceContext
 from ..integrators.path import PathTracer
+from ..integrators.path_options import Gather
+from ..integrators.path_state import PathState
 from ..integrators.photon.tracing import MIN_STORE_ROUGHNESS, PhotonTracer
 from ..lights import shapes
 from ..lights.emission import PhotonEmitter
@@ -232,8 +234,9 @@ def _indirect_pilot(scene, accel, lights, sampler, o, d, tmax, diffuse_first):
     tracer = PathTracer(scene, accel, lights)
     o32 = o.astype(np.float32)
     skip = np.full(len(d), -1, np.int64)
-    direct = tracer.trace(sampler, o, o32, d, tmax, skip, first_emission=False, max_depth=1)
-    total = tracer.trace(sampler, o, o32, d, tmax, skip, first_emission=False, max_depth=PILOT_DEPTH)
+    direct = tracer.trace(sampler, PathState.rays(o, o32, d, tmax, skip), Gather(first_emission=False, max_depth=1))
+    total = tracer.trace(sampler, PathState.rays(o, o32, d, tmax, skip),
+                         Gather(first_emission=False, max_depth=PILOT_DEPTH))
     indirect = (total - direct)[diffuse_first].mean(axis=1)
     direct, total = direct[diffuse_first].mean(axis=1), total[diffuse_first].mean(axis=1)
     d_sum, i_sum, mean = float(direct.sum()), float(indirect.sum()), float(total.mean())

@@ -49,6 +49,8 @@ from ...sampling import frame_from_z, to_world
 from ...vec import dot, gatherer, take
 from ..base import Stage
 from ..path import PathTracer
+from ..path_options import Gather
+from ..path_state import PathState
 from ..photon.integrator import PhotonIntegrator, _accumulate, _sample_rows
 from ..surface import towards
 from .cache import RecordOctree, Records, neighbour_clamp, spread_subset
@@ -328,10 +330,11 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         g = np.flatnonzero(bs.valid)
         d = take(bs.wi, g)
         o64 = take(p, rest[rep][g])
-        Lg = self.path_tracer.trace(rng.Sampler(s.seed, pix[g], smp[g], s.pattern, domain=rng.GATHER), o64,
-                                    offset_origin(o64, towards(take(ng_f, rest[rep][g]), d)), d, None,
-                                    prim[rest[rep][g]], first_emission=False, max_depth=max(s.max_depth - 1, 0),
-                                    caustic_ends=self._caustic_ends())
+        rays = PathState.rays(o64, offset_origin(o64, towards(take(ng_f, rest[rep][g]), d)), d, None,
+                              prim[rest[rep][g]])
+        Lg = self.path_tracer.trace(rng.Sampler(s.seed, pix[g], smp[g], s.pattern, domain=rng.GATHER), rays,
+                                    Gather(first_emission=False, max_depth=max(s.max_depth - 1, 0),
+                                           caustic_ends=self._caustic_ends()))
         _accumulate(L, rows[rep][g], take(bx, rep[g]) * take(bs.weight, g) * Lg / G)
 
     def _caustic_ends(self):
@@ -460,11 +463,11 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         if stop is not None and stop.is_set():
             raise Cancelled()
         if s.icache_gather == "path":
-            Lr = self.path_tracer.trace(sampler, o64, o32, d, None, skip, stop, first_emission=False,
-                                        max_depth=max(s.max_depth - 1, 0), t_first=t_first,
-                                        caustic_ends=self._caustic_ends())
+            Lr = self.path_tracer.trace(sampler, PathState.rays(o64, o32, d, None, skip),
+                                        Gather(first_emission=False, max_depth=max(s.max_depth - 1, 0),
+                                               caustic_ends=self._caustic_ends(), t_first=t_first), stop)
         else:
-            Lr = self._trace_gather(sampler, K * MN, np.arange(K * MN), np.ones((K * MN, 3)), d, o64, o32, skip,
+            Lr = self._trace_gather(sampler, K * MN, PathState.rays(o64, o32, d, None, skip, beta=np.ones((K * MN, 3))),
                                     t_first=t_first)
         E, R, grad_r, grad_t = record_terms(Lr.reshape(K, M, N, 3), t_first.reshape(K, M, N))
         coeffs = {}
