@@ -335,7 +335,7 @@ class _Stop:
     GRACE seconds after the first signal if it is still running (a long build or file load
     in C), and at once after a second one. No output file is written after a stop."""
 
-    GRACE = 0.7  # seconds: the render loop itself stops in ~0.3 s
+    GRACE = 0.7  # seconds: more than the render loop needs to stop (it polls every update)
 
     def __init__(self):
         self.requested = False

@@ -103,7 +103,8 @@ def check_light_values(scene: Scene) -> None:
 # ---- memory -------------------------------------------------------------------------------
 # Bytes per film pixel: running sums and squares (2 x 24), count (8), the noise snapshot (12),
 # plus the transient (H, W, 4) images and float64 means made when the film is shown or
-# saved, and Blender's render result (measured peak over a 2048x2048 render: ~0.2 KB/pixel).
+# saved, and Blender's render result (set from the measured peak of a large render:
+# bench/results/full/code_choices.md).
 FILM_BYTES_PER_PIXEL = 220
 # Per path of a batch in a tracing process: ray, hit, throughput and shading state arrays
 # (float64 (N,3) each) and NumPy temporaries of one bounce.

@@ -1,4 +1,4 @@
-"""Photon emission (issue 9, section 2): engine/lights/emission.py.
+"""Photon emission: engine/lights/emission.py.
 
 - Chi-square fits of origins and directions of every light kind against PhotonEmitter.pdf
   (one family-wise level of 0.01, Sidak over CHI2_CASES).

@@ -1,4 +1,4 @@
-"""Environment map light (issue 4), without Blender: the sampler's chi-square fits on synthetic
+"""Environment map light, without Blender: the sampler's chi-square fits on synthetic
 maps, pdf/eval consistency, the constant light-sampling weight inside a pixel, the direction
 -> pixel convention, what a world builds, light selection and MIS in the path tracer.
 

@@ -190,9 +190,9 @@ def test_tree_and_power_selection_agree(kind, radius, monkeypatch):
 def test_tree_has_less_error_than_power_selection(monkeypatch):
     """1000 point lights of powers over three decades spread over a floor: at equal samples
     the tree's relMSE against a reference (the tree at 32x the samples) is under half of power
-    selection's (measured 0.2-0.5 over seeds; per-pixel variance estimates are no judge here:
-    power selection rarely picks the near, bright light, so at few samples its estimate is
-    far too low)."""
+    selection's (bench/results/many_lights/report.md; per-pixel variance estimates are no
+    judge here: power selection rarely picks the near, bright light, so at few samples its
+    estimate is far too low)."""
     from ember.engine.metrics import rel_mse
     ref, _ = _render(many_lights(1000, "point", width=16, height=16, samples=1024, seed=99, threads=1), True,
                      monkeypatch)

@@ -260,9 +260,10 @@ def _slope(ns, e, lo, hi):
 
 
 def test_sobol_integrates_a_smooth_function_much_better():
-    """f = exp(-x) sin(3y) + xy, 256 samples per pixel, 2000 pixels. Measured: RMS error 2.29e-4
-    (sobol) against 1.65e-2 (random), ratio 0.0139; over N = 16..1024 the sobol error falls as
-    N^-1.41 (Owen's N^-1.5 for smooth integrands), random's as N^-0.50."""
+    """f = exp(-x) sin(3y) + xy, 256 samples per pixel, 2000 pixels: the sobol error is a small
+    fraction of random's, and over N = 16..1024 it falls close to Owen's N^-1.5 for smooth
+    integrands, random's as N^-1/2 (the measured errors and slopes:
+    bench/results/full/code_choices.md)."""
     exact = (1 - np.exp(-1)) * (1 - np.cos(3)) / 3 + 0.25
     f = lambda x, y: np.exp(-x) * np.sin(3 * y) + x * y
     ns, e_sobol = _rms_errors("sobol", f, exact, 1024, 2000)
@@ -274,10 +275,9 @@ def test_sobol_integrates_a_smooth_function_much_better():
 
 
 def test_sobol_error_on_a_discontinuous_function_falls_faster_than_monte_carlo():
-    """Indicator of the disk of radius 0.4 at (0.5, 0.5), 2000 pixels. Measured slopes of the
-    RMS error over N = 16..1024: sobol -0.770 (-0.755..-0.781 over 8 seeds and groups at 1000
-    pixels; Owen's N^-3/4 for discontinuities), random -0.497; at N = 1024 the sobol error is
-    0.19x random's."""
+    """Indicator of the disk of radius 0.4 at (0.5, 0.5), 2000 pixels: the RMS error over
+    N = 16..1024 falls about as Owen's N^-3/4 for discontinuities under sobol, as N^-1/2 under
+    random (the measured slopes: bench/results/full/code_choices.md)."""
     exact = np.pi * 0.16
     f = lambda x, y: ((x - 0.5) ** 2 + (y - 0.5) ** 2 < 0.16).astype(np.float64)
     ns, e_sobol = _rms_errors("sobol", f, exact, 1024, 2000)

@@ -35,10 +35,8 @@ from ..vec import max3, scale, take
 from . import environment, light_tree, shapes
 
 # From this many finite lights on, a light tree chooses them (below: power alone, as the seed
-# says). Measured in bench/many_lights.py (README "Many lights"): at equal time the tree wins
-# from 8 point lights on and from 16-32 emissive squares on (single runs: 8 squares lost 2.9x,
-# 64 lost 1.14x, 16, 32, 128 and 1000 won 1.25x-4x); below that its cost per shading point
-# (1.2-1.7x the render time) is not repaid.
+# says): below it the tree's cost per shading point is not reliably repaid at equal time
+# (measured in bench/results/many_lights/report.md).
 TREE_MIN_LIGHTS = 32
 # ... and only when the lights spread over at least this share of the scene's bounding radius:
 # lights clustered far from most receivers (a chandelier, an emissive sphere of many triangles)

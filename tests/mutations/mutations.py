@@ -9,7 +9,7 @@ tracer.py, workers): an anchor that no longer matches is reported as such, not a
 REFERENCE = ["tests/test_reference.py"]
 
 MUTATIONS = [
-    # --- the list ------------------------------------------------------------------
+    # --- the list the suite was first asked to catch -----------------------------------------
     dict(name="image_scale_1.03",
          note="every pixel 3 % too bright (film mean)",
          file="engine/film.py",

@@ -21,9 +21,9 @@ the global photon map (the seed's combination, `icache_gather`). Rounds of stage
             irradiance; a point no record covers is final-gathered and becomes a candidate
             for the records round before the next block.
 
-Measured on the interior and the Cornell box (README), path-traced gathers cost about half
-of photon-map gathers per record here (a k-nearest lookup per gather hit dominates those) and
-are unbiased, where the photon map is starved (sunlight through a window: -2.3 %).
+Path-traced gathers are the default: per record they cost less than photon-map gathers (a
+k-nearest lookup per gather hit dominates those) and are unbiased, where a starved photon map
+(sunlight through a window) darkens the image (measured in bench/results/icache/notes.md).
 
 Records are placed from the points of whole passes, in an order fixed by the points' sample
 indices, and each record's gather rays are numbered by the record and its level: the record
@@ -69,9 +69,9 @@ MIN_RECORD_ITEMS = 4  # work items a records round is cut into at least (two per
 MAX_ROUNDS = 12  # records rounds per placement; points still uncovered are final-gathered
 MAX_BLOCK = 16  # passes per pixels stage (records placed between blocks)
 # Refinement: before the passes [P, ...) every record holds at least 1 + P // PASSES_PER_LEVEL
-# sets of M x N gather rays. Its error then falls with the passes, as the pixels' does; a set
-# of rays for every record costs about 6-8 passes (interior, Cornell box), so the records take
-# about a third of a long render (the measured optimum: a set every 11-19 passes).
+# sets of M x N gather rays. Its error then falls with the passes, as the pixels' does; the
+# interval balances the records' noise against the pixels' at the records' cost
+# (bench/results/icache/notes.md, "Refinement").
 PASSES_PER_LEVEL = 16
 DIRECT_SAMPLES = 4  # light samples (and as many BSDF samples) per camera sample at a cached point
 DOT_PX = 1.5  # the record view: a record shows as a dot this many pixel footprints wide
@@ -127,8 +127,8 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         if self.n_global_items + self.n_caustic_items:
             # No radiance photons: a record's gather rays read the full estimate. The nearest
             # radiance photon's E is biased low where photons are stratified and sparse (it
-            # cannot count itself, and its neighbours keep their distance): -3.4 % on the
-            # interior against -1.5 % for the full estimate, and records need few lookups.
+            # cannot count itself, and its neighbours keep their distance), more than the full
+            # estimate (bench/results/icache/code_choices.md), and records need few lookups.
             yield [Stage("photons", self.n_global_items + self.n_caustic_items, publish=True)]
         n = self.layout.n_pixels
         probe = self.pixel_stage(0, n)

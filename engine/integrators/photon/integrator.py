@@ -46,7 +46,7 @@ VISIBILITY_LIFT = 1e-4  # x scene radius: photon-to-point segments start and end
 PHOTON_BYTES = 48  # a stored photon: 32 B packed + the k-NN index (tests/test_photon_map.py)
 POSITIONS_RADIUS = 0.002  # x scene radius: a photon shows as a dot this size in the "positions" view
 _CAUSTIC_COLOUR = np.array([1.0, 0.5, 0.1])
-MIN_COUNT = 1  # the seed zeroes estimates below a minimum count; measured below
+MIN_COUNT = 1  # the seed zeroes estimates below a minimum count, which darkens sparse regions
 # Random-number groups of a camera path (rng.Sampler): 0 the pixel filter, then per vertex
 # light (0-1 point, 2 choice) and BSDF (0-1 direction, 2 lobe); gather rays use domain GATHER
 # with sample index = camera sample x G + ray, per bounce one BSDF group.
@@ -184,7 +184,8 @@ class PhotonIntegrator(Integrator):
             def others(r, j):
                 # The estimate at a photon must not count that photon: it was not drawn
                 # independently of the point, and where photons are sparse (a few per disk)
-                # counting it overstated E several-fold (interior: +5-10 % overall).
+                # counting it overstated E several-fold, enough to brighten a whole interior
+                # (bench/results/photon/code_choices.md).
                 keep = j != rows[r]
                 keep[keep] = visible(r[keep], j[keep])
                 return keep
@@ -444,7 +445,7 @@ class PhotonIntegrator(Integrator):
                 E, found = self.radiance_photons.lookup(py, ny, self.r_global, return_found=True,
                                                         accept=self.visible(py, ny, self.radiance_photons))
                 # Where photons are sparse no radiance photon may lie within the radius:
-                # the full estimate there, not 0 (which darkened a sunlit interior 10 %).
+                # the full estimate there, not 0 (which visibly darkened a sunlit interior).
                 miss = np.flatnonzero(~found)
                 if len(miss):
                     pm, nm = take(py, miss), take(ny, miss)
