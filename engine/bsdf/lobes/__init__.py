@@ -14,15 +14,17 @@ from __future__ import annotations
 import numpy as np
 
 from ...scene import LOBE_KINDS
-from .base import ANALYSIS_CLASSES, SurfaceLobe
+from .base import ANALYSIS_CLASSES, Lobe, SurfaceLobe
 from .dielectric import Dielectric
 from .diffuse import Diffuse
+from .henyey_greenstein import HenyeyGreenstein
 from .microfacet import Microfacet
 from .phong import Phong
 from .transparent import Transparent
 
 LOBES: tuple[SurfaceLobe, ...] = (Diffuse(), Phong(), Microfacet(), Dielectric(), Transparent())
 assert [lobe.kind for lobe in LOBES] == list(range(LOBE_KINDS)), "LOBES is indexed by kind id"
+PHASE_FUNCTIONS: tuple[Lobe, ...] = (HenyeyGreenstein(),)
 
 # Per-kind facts, indexed by LOBE_* id.
 RAYS = np.array([lobe.rays for lobe in LOBES], np.uint8)

@@ -22,8 +22,8 @@ from ...vec import max3
 
 # What kind of bounce a sample is (Cycles' labels as its path_state_next counts them): diffuse
 # or glossy reflection (mirrors count as glossy), transmission (refraction, rough or smooth),
-# transparent pass-through.
-LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT = 0, 1, 2, 3
+# transparent pass-through, scattering in a volume (a phase function).
+LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT, LABEL_SCATTER = 0, 1, 2, 3, 4
 # Render-pass classes (engine/passes.py LOBE_CLASSES: Diffuse, Glossy, Transmission).
 CLASS_DIFFUSE, CLASS_GLOSSY, CLASS_TRANSMISSION = 0, 1, 2
 # The scene analysis' material classes (engine/choice/analysis.py): what a lobe's albedo counts as.
