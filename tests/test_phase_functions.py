@@ -75,7 +75,7 @@ def test_eval_is_the_pdf_and_cycles_formula(g):
     np.testing.assert_array_equal(HG.albedo(p, wo), 1.0)
     s = HG.sample(p, wo, rng.random((k, 2)), rng.random(k))
     np.testing.assert_allclose(s.pdf, HG.pdf(p, wo, s.wi), rtol=1e-9)
-    assert not s.delta.any() and s.weight is None and np.all(s.pdf > 0)
+    assert not np.any(s.delta) and s.weight is None and np.all(s.pdf > 0)
 
 
 @pytest.mark.parametrize("g", G_VALUES)

@@ -75,6 +75,12 @@ def _sum_by(owner: np.ndarray, values: np.ndarray, k: int) -> np.ndarray:
     return np.stack([np.bincount(owner, values[:, c], minlength=k) for c in range(3)], axis=1)
 
 
+def _set_labels(label: np.ndarray, rows: np.ndarray, value) -> None:
+    """label[rows] = value (K,) or one LABEL_* for all; label starts as LABEL_DIFFUSE."""
+    if not (np.isscalar(value) and value == LABEL_DIFFUSE):
+        label[rows] = value
+
+
 def _ragged(starts: np.ndarray, counts: np.ndarray):
     """Indices starts[i] + 0..counts[i]-1 for all i, flattened, and the i of each."""
     owner = np.repeat(np.arange(len(counts)), counts)
@@ -181,12 +187,15 @@ class Closure:
 
     def _split(self, kind: np.ndarray):
         """Per lobe kind present in `kind` (K,) (the kinds of some pairs): its group and the
-        positions in `kind` of its pairs (None when there is one group: all of them)."""
+        positions in `kind` of its pairs (None when they are all of one kind: all of them)."""
         if len(self.groups) == 1:
             yield self.groups[0], None
             return
         for g in self.groups:
             r = np.flatnonzero(kind == g.lobe.kind)
+            if len(r) == len(kind):
+                yield g, None
+                return
             if len(r):
                 yield g, r
 
@@ -225,7 +234,7 @@ class Closure:
             return self.weight * g.lobe.albedo(g.p, self._wo_of(g.rows))
         estimate = np.empty((len(self.weight), 3))
         for g in self.groups:
-            estimate[g.rows] = self.weight[g.rows] * g.lobe.albedo(g.p, self._wo_of(g.rows))
+            estimate[g.rows] = take(self.weight, g.rows) * g.lobe.albedo(g.p, self._wo_of(g.rows))
         return estimate
 
     # --- evaluation ----------------------------------------------------------------------------
@@ -247,7 +256,7 @@ class Closure:
                 if r is None:
                     f, pdf = g.lobe.eval(self._params(g, pairs), wo, wi)
                 else:
-                    f[r], pdf[r] = g.lobe.eval(self._params(g, pairs[r]), wo[r], wi[r])
+                    f[r], pdf[r] = g.lobe.eval(self._params(g, pairs[r]), take(wo, r), take(wi, r))
         return f * take(self.weight, pairs), pdf
 
     def _mixture(self, rows: np.ndarray, wi: np.ndarray, visible=None):
@@ -339,25 +348,25 @@ class Closure:
 
     def _sample_lobes(self, pick, wo, u, u_branch, live, label):
         """Sample the chosen pairs pick (K,) at local wo (K,3): (wi (K,3), weight of delta
-        samples (K,3), lobe pdf or branch pmf (K,), eta_rel^2 (N,) or None); label (N,) is
-        filled in at live."""
+        samples (K,3) or None, lobe pdf or branch pmf (K,), eta_rel^2 (N,) or None); label
+        (N,), LABEL_DIFFUSE to begin with, is filled in at live."""
         k = len(pick)
-        if len(self.groups) == 1 and k:
-            g = self.groups[0]
-            s = g.lobe.sample(self._params(g, pick), wo, u, u_branch)
-            label[live] = s.label
-            eta2 = None
-            if s.eta2 is not None:
-                eta2 = np.ones(len(label))
-                eta2[live] = s.eta2
-            return s.wi, s.weight, s.pdf, eta2
-        wi, weight, pdf, eta2 = np.zeros((k, 3)), np.zeros((k, 3)), np.ones(k), None
+        if k == 0:
+            return np.zeros((0, 3)), None, np.zeros(0), None
+        wi = weight = pdf = eta2 = None
         for g, r in self._split(self.pair_kind[pick]):
-            s = g.lobe.sample(self._params(g, pick[r]), wo[r], u[r], u_branch[r])
-            wi[r], pdf[r] = s.wi, s.pdf
-            label[live[r]] = s.label
-            if s.weight is not None:
-                weight[r] = s.weight
+            if r is None:  # one kind: its sample is the closure's
+                s = g.lobe.sample(self._params(g, pick), wo, u, u_branch)
+                wi, weight, pdf, r = s.wi, s.weight, s.pdf, slice(None)
+            else:
+                if wi is None:
+                    wi, pdf = np.empty((k, 3)), np.empty(k)
+                s = g.lobe.sample(self._params(g, pick[r]), take(wo, r), take(u, r), u_branch[r])
+                wi[r], pdf[r] = s.wi, s.pdf
+                if s.weight is not None:
+                    weight = np.zeros((k, 3)) if weight is None else weight
+                    weight[r] = s.weight
+            _set_labels(label, live[r], s.label)
             if s.eta2 is not None:
                 eta2 = np.ones(len(label)) if eta2 is None else eta2
                 eta2[live[r]] = s.eta2

@@ -72,7 +72,7 @@ class LobeSample:
     wi (K,3) unit; pdf (K,) the lobe's solid-angle pdf of wi (= pdf(p, wo, wi)), 0 where the
     lobe cannot produce wi (under the surface, wrong side of the microfacet: the sample is
     dropped, not redrawn; seed 000); for a delta sample the pmf of its branch; delta (K,)
-    bool; weight (K,3) of the delta samples: f |cos| / pmf, the discrete weight (None if
+    bool or one bool for all; weight (K,3) of the delta samples: f |cos| / pmf, the discrete weight (None if
     there are none; a sample that is not delta is weighed by the mixture it came from, f cos /
     pdf of the whole closure, which the closure evaluates); label (K,) int8 or one LABEL_*
     for all; eta2 (K,) eta_rel^2 where the sample would refract, 1 elsewhere (None: the lobe
@@ -80,7 +80,7 @@ class LobeSample:
 
     wi: np.ndarray
     pdf: np.ndarray
-    delta: np.ndarray
+    delta: np.ndarray | bool
     label: np.ndarray | int
     weight: np.ndarray | None = None
     eta2: np.ndarray | None = None

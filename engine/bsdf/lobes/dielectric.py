@@ -39,6 +39,19 @@ def _outward(p: DielectricParams) -> np.ndarray:
     return np.where(p.inside[:, None], _MIRROR_Z, 1.0)
 
 
+def _sample_smooth(p, wo, wo_o, out, u_branch):
+    """Smooth rows: (wi, weight F tint / pmf or (1 - F) colour / (eta_rel^2 pmf), pmf)."""
+    wi_o, w, pmf, reflected = dielectric.sample_smooth(p.ior, wo_o, u_branch)
+    weight = w * np.where(reflected[:, None], p.tint, p.color) * (wo[:, 2] > 0)[:, None]
+    return wi_o * out, weight, pmf
+
+
+def _sample_rough(p, wo, wo_o, out, u, u_branch):
+    """Rough rows: (wi, pdf), pdf 0 for wo under the shading normal."""
+    wi_o, _, pdf = dielectric.sample_rough(p.alpha, p.ior, wo_o, u, u_branch)
+    return wi_o * out, np.where(wo[:, 2] > 0, pdf, 0.0)
+
+
 class Dielectric(SurfaceLobe):
     kind = LOBE_DIELECTRIC
     rays = RAY_GLOSSY | RAY_TRANSMIT  # left out only for lights invisible to both (Cycles)
@@ -77,22 +90,16 @@ class Dielectric(SurfaceLobe):
         wo_o = wo * out
         # eta_rel = n(wi side) / n(wo side) of a refraction; wo_o.z > 0: wo outside.
         eta2 = np.where(wo_o[:, 2] > 0, p.ior, 1.0 / p.ior) ** 2
-        wi, pdf, weight = np.empty((len(p), 3)), np.empty(len(p)), None
         smooth = p.delta
-        if smooth.any():
-            d = np.flatnonzero(smooth)
-            q = p.take(d)
-            wi_o, w, pmf, refl = dielectric.sample_smooth(q.ior, wo_o[d], u_branch[d])
-            wi[d] = wi_o * out[d]
-            weight = np.zeros((len(p), 3))
-            weight[d] = w * np.where(refl[:, None], q.tint, q.color) * (wo[d, 2] > 0)[:, None]
-            pdf[d] = pmf
-        if not smooth.all():
-            s = np.flatnonzero(~smooth)
-            q = p.take(s)
-            wi_o, _, p_lobe = dielectric.sample_rough(q.alpha, q.ior, wo_o[s], u[s], u_branch[s])
-            wi[s] = wi_o * out[s]
-            pdf[s] = np.where(wo[s, 2] > 0, p_lobe, 0.0)
+        if smooth.all():
+            wi, weight, pdf = _sample_smooth(p, wo, wo_o, out, u_branch)
+        elif not smooth.any():
+            (wi, pdf), weight = _sample_rough(p, wo, wo_o, out, u, u_branch), None
+        else:
+            wi, weight, pdf = np.empty((len(p), 3)), np.zeros((len(p), 3)), np.empty(len(p))
+            d, s = np.flatnonzero(smooth), np.flatnonzero(~smooth)
+            wi[d], weight[d], pdf[d] = _sample_smooth(p.take(d), wo[d], wo_o[d], out[d], u_branch[d])
+            wi[s], pdf[s] = _sample_rough(p.take(s), wo[s], wo_o[s], out[s], u[s], u_branch[s])
         label = np.where(wi[:, 2] * wo[:, 2] < 0, LABEL_TRANSMIT, LABEL_GLOSSY)
         return LobeSample(wi=wi, pdf=pdf, delta=smooth, label=label, weight=weight, eta2=eta2)
 

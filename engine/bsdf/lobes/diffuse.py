@@ -29,7 +29,7 @@ class Diffuse(SurfaceLobe):
 
     def sample(self, p, wo, u, u_branch) -> LobeSample:
         wi = diffuse.sample(u)
-        return LobeSample(wi=wi, pdf=diffuse.pdf(wi[:, 2]), delta=p.delta, label=LABEL_DIFFUSE)
+        return LobeSample(wi=wi, pdf=diffuse.pdf(wi[:, 2]), delta=False, label=LABEL_DIFFUSE)
 
     def stores_photons(self, m, lobe, min_roughness):
         return np.ones(len(lobe), bool)

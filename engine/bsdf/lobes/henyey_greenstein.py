@@ -70,4 +70,4 @@ class HenyeyGreenstein(Lobe):
         forward = -wo
         t, b = sampling.frame_from_z(forward)
         wi = sampling.to_world(local, t, b, forward)
-        return LobeSample(wi=wi, pdf=phase(g, one_minus_cos), delta=np.zeros(len(p), bool), label=LABEL_SCATTER)
+        return LobeSample(wi=wi, pdf=phase(g, one_minus_cos), delta=False, label=LABEL_SCATTER)

@@ -44,7 +44,7 @@ class Phong(SurfaceLobe):
     def sample(self, p, wo, u, u_branch) -> LobeSample:
         wi, _, pdf = phong.sample(p.color, p.tint, p.exponent, wo, u, u_branch)
         label = np.where(u_branch < phong.diffuse_probability(p.color, p.tint), LABEL_DIFFUSE, LABEL_GLOSSY)
-        return LobeSample(wi=wi, pdf=pdf, delta=p.delta, label=label)
+        return LobeSample(wi=wi, pdf=pdf, delta=False, label=label)
 
     def drop_caustics(self, p, reflection, refraction):
         p.tint[reflection] = 0.0  # Ember's Phong loses ks

@@ -28,7 +28,7 @@ class Transparent(SurfaceLobe):
         return np.zeros((len(p), 3)), np.zeros(len(p))  # a direction has probability 0 of being its
 
     def sample(self, p, wo, u, u_branch) -> LobeSample:
-        return LobeSample(wi=-wo, pdf=np.ones(len(p)), delta=p.delta, label=LABEL_TRANSPARENT, weight=p.color)
+        return LobeSample(wi=-wo, pdf=np.ones(len(p)), delta=True, label=LABEL_TRANSPARENT, weight=p.color)
 
     def stores_photons(self, m, lobe, min_roughness):
         return np.zeros(len(lobe), bool)
