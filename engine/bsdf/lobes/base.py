@@ -141,12 +141,13 @@ class SurfaceLobe(Lobe):
     @abc.abstractmethod
     def parameters(self, m, lobe: np.ndarray, point: np.ndarray, uv, inside) -> SurfaceParams:
         """Parameters of lobes `lobe` (K,) of the material table m at shading points `point`
-        (K,); uv (N,2) per point or None (no texture in the batch); inside (N,) bool per point
-        or None: wo is behind the triangle's winding normal (only if needs_side)."""
+        (K,); uv (N,2) per point or None (no texture in the batch); inside (N,) bool per point:
+        wo is behind the triangle's winding normal (known where some lobe needs_side)."""
 
     def drop_caustics(self, p: SurfaceParams, reflection: np.ndarray, refraction: np.ndarray):
-        """Cycles' caustics toggles: rows (K,) bool whose glossy reflection / refraction is left
-        out. Changes p in place; returns the rows (K,) bool that are left out whole, or None."""
+        """Cycles' caustics toggles: reflection, refraction (K,) bool: rows whose glossy
+        reflection / refraction is left out. Changes p in place; returns the rows (K,) bool
+        left out whole, or None."""
         return None
 
     def blur(self, p: SurfaceParams, min_alpha: np.ndarray) -> None:
