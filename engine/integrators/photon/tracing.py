@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...bsdf import lobes
 from ...bsdf.fast_path import make_closure, plain_lambert_albedo
 from ...errors import Cancelled
-from ...scene import LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_PHONG, Materials
+from ...scene import Materials
 from ...vec import dot, max3, scale, take
 from ..path_state import PathState
 from ..surface import flat_normals, shading_frame
@@ -35,12 +36,9 @@ EMIT_POS, EMIT_DIR, FIRST_BOUNCE = 0, 1, 2
 
 
 def diffuse_materials(m: Materials) -> np.ndarray:
-    """(M,) bool: materials with a lobe that stores photons (diffuse, Phong with a diffuse
-    part, microfacet or rough glass with roughness >= MIN_STORE_ROUGHNESS)."""
-    k = m.lobe_kind
-    stores = (k == LOBE_DIFFUSE) | ((k == LOBE_PHONG) & (m.lobe_color.max(axis=1) > 0))
-    stores |= ((k == LOBE_MICROFACET) | (k == LOBE_DIELECTRIC)) & (m.lobe_roughness >= MIN_STORE_ROUGHNESS)
-    stores &= m.lobe_weight.max(axis=1) > 0
+    """(M,) bool: materials with a lobe that stores photons (each lobe says: diffuse, Phong
+    with a diffuse part, microfacet or rough glass with roughness >= MIN_STORE_ROUGHNESS)."""
+    stores = lobes.stores_photons(m, MIN_STORE_ROUGHNESS) & (m.lobe_weight.max(axis=1) > 0)
     return np.bincount(m.lobe_material[stores], minlength=len(m.kind)) > 0
 
 
