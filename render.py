@@ -15,23 +15,9 @@ Options (each defaults to the scene's own setting):
                          with --frames and no '#', four are put before the extension.
     --frames SPEC        frames to render, one file each: 5, 1-250, 1,3,10-12, or all (the
                          scene's frame range and step). Default: the scene's current frame.
-    --samples N          samples per pixel (>= 1)
-    --time-limit S       stop after S seconds (0 = no limit)
-    --noise-target X     stop once the estimated relative noise falls to X (0 = off)
-    --seed K             random seed (>= 0)
-    --animated-seed on|off   a different noise pattern on every frame (Cycles' animated seed)
-    --adaptive on|off    adaptive sampling: pixels stop once their noise is below the threshold
-    --adaptive-threshold X   its noise threshold, 0..1 (0 = automatic from the samples)
-    --adaptive-min-samples N samples before a pixel may stop, 0..4096 (0 = automatic)
     --preset NAME        preview or final: Ember's sampling presets (applied before the other
                          options, which then override single values)
-    --integrator NAME    path, photon (photon mapping), ppm (progressive photon mapping) or
-                         icache (irradiance cache on photon-map final gathering)
-    --pattern NAME       sobol (Owen-scrambled Sobol, the default) or random (independent)
     --resolution WxH     frame size in pixels (resolution percentage becomes 100 %)
-    --max-depth N        longest path (1..1024)
-    --sample-offset K    take samples [K, K + N) of the sample sequence (N = --samples): parts of
-                         one frame rendered on several machines, then `render.py merge`
     --border X0,Y0,X1,Y1 render only this region (Blender's render border: fractions of the
                          frame, y from the bottom), uncropped: tiles that `merge` puts together
     --threads N          CPU threads, one worker process each (1: all in this process). Default:
@@ -42,26 +28,10 @@ Options (each defaults to the scene's own setting):
                          channels, the render's size) as passes complete and at the end
     --no-progress        no progress on stderr (a bar on a terminal; without one, e.g. in a
                          farm's log, one line every few seconds)
-Photon mapping (integrators photon and ppm; radii in metres, 0 = scene-relative default):
-    --photons N          photon paths for the global map (ppm: per pass)
-    --caustic-photons N  photon paths for the caustic map
-    --photon-k N         nearest photons per radiance estimate (>= 2)
-    --photon-kernel NAME uniform, cone or epanechnikov
-    --global-radius R, --caustic-radius R   largest search radii
-    --gather-rays N      final-gathering rays per camera sample
-    --radiance-photons on|off   gather rays read precomputed irradiance (Christensen 1999)
-    --photon-view NAME   full, or a debug view: global (the global map seen directly), caustic,
-                         positions (where photons landed), indirect (final gathering alone)
-    --ppm-radius R, --ppm-alpha A   progressive photon mapping: first radius, radius shrink (0..1)
-Irradiance cache (integrator icache; also reads the photon options):
-    --icache-a A         accuracy a: records used where Ward's error < a (0.05..0.5; seed: 0.1-0.35)
-    --icache-rays N      gather rays per record (50..2000)
-    --icache-gradients on|off   extrapolate records by their gradients
-    --icache-weight NAME ward or tabellion
-    --icache-gather NAME photon (the global map) or path (path-traced gather rays)
-    --icache-view NAME   full, or records (record positions as dots), indirect (the cache alone)
-    --icache-radiance on|off   radiance caching: rough glossy surfaces from the records too
-    --icache-radiance-order N  its spherical-harmonics order (2..8; 7 serves roughness >= 0.61)
+Every Ember setting with a flag in engine/settings.py is an option too, checked against its
+declared range or choices (--samples N, --integrator NAME, --max-depth N, --photons N,
+--icache-a A, --diffuse-bounces N, --adaptive on|off, ...): `render.py --help` lists them by
+subsystem, README's settings table with their defaults and ranges.
 
 Merge: `render.py merge PART.exr ... --output OUT.exr` combines EXRs that render.py wrote of
 one frame - disjoint sample ranges (--sample-offset), tiles (--border) or both - weighting each
@@ -113,125 +83,71 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-INT_MAX = 2 ** 31 - 1  # Blender's integer properties are 32-bit
-
-
-def _int_at_least(minimum, maximum=INT_MAX):
-    """argparse type: a whole number in minimum..maximum."""
+def _int_in(minimum, maximum):
+    """argparse type: a whole number in minimum..maximum (options that are no Ember setting)."""
     def parse(text):
         try:
             value = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}")
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
-        if value > maximum:
-            raise argparse.ArgumentTypeError(f"must be at most {maximum}, got {value}")
+            raise argparse.ArgumentTypeError(f"must be a whole number (got {text!r})")
+        problem = _declared().range_problem(value, minimum, maximum)
+        if problem:
+            raise argparse.ArgumentTypeError(problem)
         return value
     return parse
 
 
-_positive_int = _int_at_least(1)
-_non_negative_int = _int_at_least(0)
+def _declared():
+    """engine/settings.py, the settings' declarations (plain Python: cheap before bpy)."""
+    _load_ember()
+    from ember.engine import settings
+    return settings
 
 
-def _finite_at_least_zero(example):
-    """argparse type: a finite number >= 0 (`example` names what is expected)."""
+def _setting_type(declared, s):
+    """argparse type of a declared setting: its text read (on|off, numbers, choices in any
+    case) and checked against its range or choices and Blender's 32-bit limits."""
     def parse(text):
         try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {example}, got {text!r}")
-        if not value >= 0 or value == float("inf"):
-            raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
-        if value > 3.4e38:  # Blender stores it as a 32-bit float
-            raise argparse.ArgumentTypeError(f"must be at most 3.4e38, got {text!r}")
+            value = declared.from_text(s, text)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e))
+        problem = declared.problem(s, value, blender=True)
+        if problem:
+            raise argparse.ArgumentTypeError(problem)
         return value
     return parse
 
 
-_non_negative_float = _finite_at_least_zero("a number of seconds")
-_noise_target = _finite_at_least_zero("a number such as 0.02")
+def _setting_help(declared, s) -> str:
+    """--help's text of a declared setting: its description, range, unit and integrators."""
+    text = s.description
+    if s.kind in (int, float):
+        text += f"; {declared.range_text(s)}" + (f" {declared.UNITS[s.unit]}" if s.unit else "")
+    if s.honoured_by:
+        text += f" [{', '.join(s.honoured_by)}]"
+    return text.replace("%", "%%")
 
 
-def _max_depth(text):
-    value = _positive_int(text)
-    if value > 1024:
-        raise argparse.ArgumentTypeError(f"must be at most 1024, got {value}")
-    return value
+def add_setting_options(parser, declared, groups) -> None:
+    """One option per declared setting with a flag, in an argument group per subsystem;
+    its value lands in args.<setting name> (None: not given)."""
+    for g in groups:
+        flagged = [s for s in g.settings if s.flag]
+        if not flagged:
+            continue
+        section = parser.add_argument_group(f"{g.label} settings")
+        for s in flagged:
+            section.add_argument(s.flag, dest=s.name, type=_setting_type(declared, s), metavar=_metavar(s),
+                                 help=_setting_help(declared, s))
 
 
-def _alpha(text):
-    value = _finite_at_least_zero("a number such as 0.67")(text)
-    if not 0 < value < 1:
-        raise argparse.ArgumentTypeError(f"must be between 0 and 1 (exclusive), got {text!r}")
-    return value
-
-
-def _on_off(text):
-    if text.lower() not in ("on", "off"):
-        raise argparse.ArgumentTypeError(f"expected on or off, got {text!r}")
-    return text.lower() == "on"
-
-
-_metres = _finite_at_least_zero("a distance in metres")
-# Photon-mapping options: (option, scene.ember property, argparse type, help).
-PHOTON_OPTIONS = (
-    ("--photons", "photons", _non_negative_int, "photon paths for the global map (ppm: per pass)"),
-    ("--caustic-photons", "caustic_photons", _non_negative_int, "photon paths for the caustic map"),
-    ("--photon-k", "photon_k", _int_at_least(2), "nearest photons per radiance estimate"),
-    ("--global-radius", "global_radius", _metres, "largest global-map search radius (m, 0 = auto)"),
-    ("--caustic-radius", "caustic_radius", _metres, "largest caustic-map search radius (m, 0 = auto)"),
-    ("--gather-rays", "gather_rays", _non_negative_int, "final-gathering rays per camera sample"),
-    ("--radiance-photons", "radiance_photons", _on_off, "on|off: gather rays read radiance photons"),
-    ("--photon-view", "photon_view", str, "full, or a debug view: global, caustic, positions, indirect"),
-    ("--photon-kernel", "photon_kernel", str, "uniform, cone or epanechnikov"),
-    ("--ppm-radius", "ppm_radius", _metres, "progressive photon mapping: first radius (m, 0 = auto)"),
-    ("--ppm-alpha", "ppm_alpha", _alpha, "progressive photon mapping: radius shrink, in (0, 1)"),
-    ("--icache-a", "icache_a", _finite_at_least_zero("a number such as 0.2"), "irradiance cache: accuracy a"),
-    ("--icache-rays", "icache_rays", _positive_int, "irradiance cache: gather rays per record (50..2000)"),
-    ("--icache-gradients", "icache_gradients", _on_off, "on|off: extrapolate records by their gradients"),
-    ("--icache-weight", "icache_weight", str, "irradiance cache: ward or tabellion"),
-    ("--icache-gather", "icache_gather", str, "irradiance cache: photon or path"),
-    ("--icache-view", "icache_view", str, "irradiance cache: full, records or indirect"),
-    ("--icache-radiance", "icache_radiance", _on_off, "on|off: radiance caching of rough glossy surfaces"),
-    ("--icache-radiance-order", "icache_radiance_order", _positive_int, "radiance cache: harmonics order (2..8)"),
-)
-ENUM_OPTIONS = ("photon_view", "photon_kernel", "icache_weight", "icache_gather", "icache_view")
-# Light-path options (path tracer), same form as PHOTON_OPTIONS.
-_bounce_limit = _int_at_least(1)
-LIGHT_PATH_OPTIONS = (
-    ("--diffuse-bounces", "diffuse_bounces", _bounce_limit, "most diffuse bounces on a path (Cycles' + 1)"),
-    ("--glossy-bounces", "glossy_bounces", _bounce_limit, "most glossy bounces on a path (Cycles' + 1)"),
-    ("--transmission-bounces", "transmission_bounces", _bounce_limit,
-     "most transmission bounces on a path (Cycles' + 1)"),
-    ("--transparent-bounces", "transparent_bounces", _non_negative_int, "most transparent passes on a path"),
-    ("--caustics-reflective", "caustics_reflective", _on_off, "on|off: glossy reflection after diffuse"),
-    ("--caustics-refractive", "caustics_refractive", _on_off, "on|off: refraction after diffuse"),
-    ("--clamp-direct", "clamp_direct", _finite_at_least_zero("a number such as 10"),
-     "clamp direct-light samples to this mean RGB (0 = off)"),
-    ("--clamp-indirect", "clamp_indirect", _finite_at_least_zero("a number such as 10"),
-     "clamp indirect-light samples to this mean RGB (0 = off)"),
-    ("--filter-glossy", "filter_glossy", _finite_at_least_zero("a number such as 1"),
-     "blur glossy reflections after rough bounces (0 = off)"),
-)
-
-
-def _threshold(text):
-    value = _finite_at_least_zero("a number such as 0.01")(text)
-    if value > 1:
-        raise argparse.ArgumentTypeError(f"must be between 0 and 1 (0 = automatic), got {text!r}")
-    return value
-
-
-# Sampling options: (option, scene.ember property, argparse type, help).
-SAMPLING_OPTIONS = (
-    ("--animated-seed", "use_animated_seed", _on_off, "on|off: a different noise pattern on every frame"),
-    ("--adaptive", "use_adaptive_sampling", _on_off, "on|off: adaptive sampling"),
-    ("--adaptive-threshold", "adaptive_threshold", _threshold, "adaptive sampling's noise threshold (0 = auto)"),
-    ("--adaptive-min-samples", "adaptive_min_samples", _int_at_least(0, 4096),
-     "samples before adaptive sampling may stop a pixel (0 = auto)"),
-)
+def _metavar(s) -> str:
+    if s.kind is bool:
+        return "on|off"
+    if s.kind is str:
+        return "|".join(s.values) or "NAME"
+    return {"s": "S", "m": "M"}.get(s.unit, "N" if s.kind is int else "X")
 
 
 def _resolution(text):
@@ -259,40 +175,27 @@ def _border(text):
 
 
 def build_parser(blend_required: bool) -> argparse.ArgumentParser:
+    declared = _declared()
     p = _Parser(prog="render.py", description="Render a .blend with Ember, headless.",
                 epilog="Options left out keep the scene's own settings.")
     p.add_argument("blend", nargs=None if blend_required else "?", help="the .blend file to render")
     p.add_argument("-o", "--output", help="output image, .png or .exr (default: <blend name>.png)")
-    p.add_argument("--samples", type=_positive_int, help="samples per pixel")
-    p.add_argument("--time-limit", type=_non_negative_float, help="seconds, 0 = no limit")
-    p.add_argument("--noise-target", type=_noise_target,
-                   help="stop once the estimated relative noise falls to this (0 = off)")
-    p.add_argument("--seed", type=_non_negative_int, help="random seed")
-    p.add_argument("--integrator", help="light transport method, e.g. path")
-    p.add_argument("--pattern", choices=("sobol", "random"),
-                   help="sample pattern: sobol (Owen-scrambled, the default) or random (independent)")
     p.add_argument("--resolution", type=_resolution, help="WIDTHxHEIGHT in pixels")
-    p.add_argument("--max-depth", type=_max_depth, help="longest light path (1..1024)")
-    p.add_argument("--preset", choices=("preview", "final"), help="Ember's sampling preset, before the other options")
-    for option, prop, kind, text in SAMPLING_OPTIONS:
-        p.add_argument(option, dest=prop, type=kind, help=text)
-    for option, prop, kind, text in PHOTON_OPTIONS + LIGHT_PATH_OPTIONS:
-        p.add_argument(option, dest=prop, type=kind, help=text)
-    p.add_argument("--reference", help="linear EXR to print relMSE against while rendering")
-    p.add_argument("--sample-offset", type=_non_negative_int,
-                   help="first sample index: render samples [K, K + samples) (a part for render.py merge)")
     p.add_argument("--border", type=_border, help="render border X0,Y0,X1,Y1 (fractions, y up), uncropped")
-    p.add_argument("--threads", type=_int_at_least(1, 1024),
+    p.add_argument("--threads", type=_int_in(1, 1024),
                    help="CPU threads (worker processes); default: the scene's setting, Auto-detect = "
                         "the CPUs this process may use (affinity)")
+    p.add_argument("--frames", help="frames to render: 5, 1-250, 1,3,10-12 or all (one file each)")
+    p.add_argument("--preset", choices=("preview", "final"), help="Ember's sampling preset, before the other options")
+    p.add_argument("--reference", help="linear EXR to print relMSE against while rendering")
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress (a bar on a terminal, else a log line every few seconds)")
     p.add_argument("--scheduler", help="render on Dask: tcp://HOST:PORT of a scheduler, or local:N workers")
-    p.add_argument("--chunk-samples", type=_positive_int,
+    p.add_argument("--chunk-samples", type=_int_in(1, declared.INT_MAX),
                    help="with --scheduler: at most this many samples per task (frames split, then merged)")
     p.add_argument("--send-blend", action="store_true",
                    help="with --scheduler: send the .blend's bytes to the workers (else they read its path)")
-    p.add_argument("--frames", help="frames to render: 5, 1-250, 1,3,10-12 or all (one file each)")
-    p.add_argument("--no-progress", action="store_true",
-                   help="no progress (a bar on a terminal, else a log line every few seconds)")
+    add_setting_options(p, declared, declared.GROUPS)
     return p
 
 
@@ -432,7 +335,7 @@ class _Stop:
     GRACE seconds after the first signal if it is still running (a long build or file load
     in C), and at once after a second one. No output file is written after a stop."""
 
-    GRACE = 0.7  # seconds: the render loop itself stops in ~0.3 s
+    GRACE = 0.7  # seconds: more than the render loop needs to stop (it polls every update)
 
     def __init__(self):
         self.requested = False
@@ -558,48 +461,22 @@ class _Reference:
 
 def _apply_settings(scene, args) -> None:
     """Command-line overrides onto the in-memory scene (never saved)."""
+    declared = _declared()
     ember = scene.ember
     if args.preset is not None:
         from ember.ui.presets import apply_preset
         apply_preset(ember, args.preset.upper())
-    for _, prop, _, _ in SAMPLING_OPTIONS:
-        if getattr(args, prop) is not None:
-            setattr(ember, prop, getattr(args, prop))
-    if args.samples is not None:
-        ember.samples = args.samples
-    if args.time_limit is not None:
-        ember.time_limit = args.time_limit
-    if args.noise_target is not None:
-        ember.noise_target = args.noise_target
-    if args.seed is not None:
-        ember.seed = args.seed
-    if args.max_depth is not None:
-        ember.max_depth = args.max_depth
-    if args.pattern is not None:
-        ember.pattern = args.pattern.upper()
-    for _, prop, _, _ in PHOTON_OPTIONS:
-        value = getattr(args, prop)
+    for s in declared.DECLARED.values():
+        value = getattr(args, s.name, None) if s.flag else None
         if value is None:
             continue
-        if prop in ENUM_OPTIONS:
-            items = [i.identifier for i in type(ember).bl_rna.properties[prop].enum_items]
-            if value.upper() not in items:
-                what = prop.replace("_", " ")
-                raise UsageError(f"unknown {what} {value!r} (choose one of: {', '.join(i.lower() for i in items)})")
+        if s.kind is str:  # the property's items: the integrator's are only known here
+            ids = [i.identifier for i in type(ember).bl_rna.properties[s.bpy_prop].enum_items]
+            problem = declared.problem(s, value, choices=tuple(i.lower() for i in ids))
+            if problem:
+                raise UsageError(f"argument {s.flag}: {problem}")
             value = value.upper()
-        setattr(ember, prop, value)
-    for _, prop, _, _ in LIGHT_PATH_OPTIONS:
-        if getattr(args, prop) is not None:
-            setattr(ember, prop, getattr(args, prop))
-    if args.integrator is not None:
-        items = {i.identifier: i for i in type(ember).bl_rna.properties["integrator"].enum_items}
-        wanted = args.integrator.strip().upper()
-        if wanted not in items:
-            names = ", ".join(k.lower() for k in items)
-            raise UsageError(f"unknown integrator {args.integrator!r} (choose one of: {names})")
-        ember.integrator = wanted
-    if args.sample_offset is not None:
-        ember.sample_offset = args.sample_offset
+        setattr(ember, s.bpy_prop, value)
     if args.border is not None:
         r = scene.render
         r.use_border, r.use_crop_to_border = True, False
@@ -948,10 +825,10 @@ def _auto_for_parts(scene) -> list[str]:
     s = exported.settings
     resolved = choice.resolve(exported.replace(settings=s.replace(sample_offset=max(s.sample_offset, 1))))
     print(f"Ember: {resolved.lines[0]} (once, for every part)", flush=True)
-    flag = {prop: option for option, prop, _, _ in PHOTON_OPTIONS}
+    declared = _declared()
     out = ["--integrator", resolved.scene.settings.integrator]
     for name, value in resolved.choice.settings.items():
-        out += [flag[name], str(value)]
+        out += [declared.DECLARED[name].flag, declared.to_text(declared.DECLARED[name], value)]
     return out
 
 

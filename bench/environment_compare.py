@@ -68,7 +68,7 @@ def regions(scene):
     sun_only = np.where(scene.world.image.mean(axis=2, keepdims=True) > 100, scene.world.image, 0)
     sun = EnvironmentMap(sun_only, scene.world.color, scene.world.projection, scene.world.env_from_world)
     u = (np.stack(np.mgrid[0:8, 0:8], -1).reshape(-1, 2) + 0.5) / 8
-    sun_dirs = sun.sample(u)[0]  # (64, 3) stratified over the sun
+    sun_dirs = sun.sample(u).wi  # (64, 3) stratified over the sun
     p = hit.p[ground]
     origin = offset_origin(np.repeat(p, len(sun_dirs), 0), np.broadcast_to([0.0, 0.0, 1.0], (len(p) * len(sun_dirs), 3)))
     dirs = np.tile(sun_dirs, (len(p), 1))

@@ -50,7 +50,7 @@ def main():
             tracemalloc.stop()
         u = rng.random((1_000_000, 2))
         t0 = time.perf_counter()
-        wi, _, _, _ = env.sample(u)
+        wi = env.sample(u).wi
         t_sample = time.perf_counter() - t0
         t0 = time.perf_counter()
         env.pdf(wi)

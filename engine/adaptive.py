@@ -16,11 +16,12 @@ The check runs only at pass boundaries - at the first multiple of STEP from `min
 on, then every STEP passes - on the film of exactly those passes, so which pixels stay active
 depends only on the pass count, never on timing or the number of workers. One difference from
 Cycles: once few pixels are active, checks come less often (every power of two >= STEP
-passes that gives CHECK_PATHS paths between checks), because a work item has a fixed cost in
-Python (~10-20 ms) and a few hundred pixels x 16 passes would be mostly that; the interval
-depends only on the number of active pixels, so images still depend only on the pass count. A converged pixel is not checked again, but every
-pixel within one pixel (3x3) of an active one is active (Cycles' filter_x / filter_y), so
-edges of noisy regions keep sampling.
+passes that gives CHECK_PATHS paths between checks), because a work item has a fixed cost
+in Python and a few hundred pixels x 16 passes would be mostly that (measured in
+bench/results/adaptive/report.md); the interval depends only on the number of active pixels,
+so images still depend only on the pass count. A converged pixel is not checked again, but
+every pixel within one pixel (3x3) of an active one is active (Cycles' filter_x / filter_y),
+so edges of noisy regions keep sampling.
 """
 from __future__ import annotations
 

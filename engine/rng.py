@@ -27,9 +27,11 @@ for stochastic transparency"; constants of Burley's improved hash) is exactly a 
 permutation of the digits. The Sobol generator-matrix product is four byte-table gathers per
 32-bit index (two lanes per 64-bit table entry). Bit reversal swaps bits, pairs and nibbles
 with masks and then the bytes: in NumPy that is faster than four byte-table gathers
-(bench/rng_study.py).
+(bench/results/tail/report.md).
 """
 import numpy as np
+
+from .settings import DECLARED
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -45,7 +47,7 @@ _K_DOMAIN = np.uint64(0x8CB92BA72F3D8DD7)  # separates the streams of different 
 # irradiance-cache records pixel = record index and sample = gather ray.
 CAMERA, PHOTONS, GATHER, RECORDS = 0, 1, 2, 3
 
-PATTERNS = ("sobol", "random")
+PATTERNS = DECLARED["pattern"].values
 
 
 def _mix(x: np.ndarray) -> np.ndarray:
@@ -137,7 +139,7 @@ def _hash32_(x: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def _reverse_bits_(x: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Bit reversal of uint32 x in place: swap bits, pairs and nibbles with masks and shifts,
-    then the bytes (in NumPy this beats four byte-table gathers ~2x, see bench/rng_study.py)."""
+    then the bytes (in NumPy this beats four byte-table gathers: bench/results/tail/report.md)."""
     for shift, mask in ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F)):
         np.right_shift(x, np.uint32(shift), out=t)
         t &= np.uint32(mask)

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from .errors import EmberError
+from .settings import SAMPLING_ONLY, Settings  # generated from the declarations (engine/settings.py)
 
 # Material kinds: how a material was defined (for messages and tests). What is shaded is its
 # lobes (below); shading runs once per lobe kind present in the scene.
@@ -56,11 +57,6 @@ LIGHT_DISK = 4  # disk or ellipse
 RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, RAY_SHADOW = 1, 2, 4, 8, 16
 RAY_ALL = 31
 HOLDOUT = 32
-
-FILTERS = ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS")
-# Direct-light strategies: both combined by MIS (default), or one alone (for studies and the
-# strategy-agreement tests; each alone is unbiased too, where it can reach the light).
-STRATEGIES = ("mis", "bsdf", "light")
 
 
 def _f64(a, shape_tail=()):
@@ -428,95 +424,6 @@ class Camera:
 
 
 @dataclass(frozen=True)
-class Settings:
-    """Render settings. Pixel rows count from the top of the image in the core.
-
-    width/height: full frame in pixels (resolution_percentage applied).
-    border (x0, y0, x1, y1): the pixel rectangle to render, half-open, top-left origin.
-    """
-
-    width: int = 64
-    height: int = 64
-    border: tuple = None
-    samples: int = 16
-    max_depth: int = 64
-    rr_depth: int = 3
-    seed: int = 0
-    time_limit: float = 0.0  # seconds, 0 = none
-    batch_size: int = 1 << 17
-    filter: str = "BLACKMAN_HARRIS"
-    filter_width: float = 1.5  # pixels
-    integrator: str = "path"
-    strategy: str = "mis"
-    pattern: str = "sobol"  # rng.PATTERNS: Owen-scrambled Sobol (as Cycles) or "random"
-    noise_target: float = 0.0  # stop when Film.noise() falls below it (0 = off)
-    threads: int = 0  # 0 = all cores
-    # Photon mapping (integrator "photon"); radii 0 = scene-relative defaults.
-    photons: int = 200_000  # photon paths emitted for the global map
-    caustic_photons: int = 1_000_000  # photon paths emitted for the caustic map
-    photon_k: int = 50  # nearest photons in a radiance estimate
-    photon_kernel: str = "uniform"  # radiance-estimate kernel: "uniform", "cone", "epanechnikov"
-    global_radius: float = 0.0  # maximum search radius of the global map (m)
-    caustic_radius: float = 0.0  # maximum search radius of the caustic map (m)
-    gather_rays: int = 16  # final-gathering rays per camera sample
-    radiance_photons: bool = True  # gather rays read precomputed irradiance (Christensen 1999)
-    photon_view: str = "full"  # "full", or a debug view: "global", "caustic", "positions"
-    ppm_radius: float = 0.0  # progressive photon mapping: first radius (m), 0 = 1 % of the scene radius
-    ppm_alpha: float = 2.0 / 3.0  # share of a pass's photons kept (radius shrink), in (0, 1)
-    # Irradiance cache (integrator "icache"); also reads the photon settings above.
-    icache_rays: int = 392  # gather rays per record (M x 2M cells; Mitsuba 0.6's 14 x 28), 50-2000
-    icache_a: float = 0.2  # accuracy a: a record is used where Ward's error < a (the seed's 0.1-0.35)
-    icache_gradients: bool = True  # extrapolate records by their rotational and translational gradients
-    icache_weight: str = "ward"  # interpolation weight: "ward" (the seed) or "tabellion" (Tabellion-Lamorlette)
-    # radiance at gather hits: "path" (path tracing; measured faster and unbiased, README) or
-    # "photon" (the global photon map: the seed's combination)
-    icache_gather: str = "path"
-    icache_view: str = "full"  # "full", or the debug view "records" (records as dots)
-    icache_radiance: bool = False  # radiance caching of rough glossy surfaces (off: bench/results/icache/radiance.md)
-    icache_radiance_order: int = 7  # spherical-harmonics order n (n^2 coefficients), 2-8; 7 serves roughness >= 0.61
-    # First sample index: a render takes samples [sample_offset, sample_offset + samples) of
-    # the one sequence, so renders of disjoint ranges merge into the render of their union.
-    sample_offset: int = 0
-    # Keep worker processes, Embree scenes and light tables for the next render (Blender's
-    # Persistent Data; animations): only the scene parts that changed are built again.
-    persistent: bool = False
-    # Look-dev (engine/passes.py): render passes besides Combined, by Blender name; film
-    # transparency (camera rays that escape give alpha 0 and no world; the world still lights).
-    passes: tuple = ()
-    film_transparent: bool = False
-    origin: tuple = (0.0, 0.0, 0.0)  # world position of the core's (0, 0, 0) (see recentred)
-    # Light paths (path tracer; Cycles' semantics, see engine/integrators/path.py). Limits count
-    # surface interactions of one kind on a path, like max_depth (Cycles' diffuse, glossy and
-    # transmission bounces + 1; transparent passes as Cycles counts them, and they do not
-    # count toward max_depth).
-    diffuse_bounces: int = 64
-    glossy_bounces: int = 64
-    transmission_bounces: int = 64
-    transparent_bounces: int = 64
-    caustics_reflective: bool = True  # glossy reflection seen right after a diffuse bounce
-    caustics_refractive: bool = True  # refraction seen right after a diffuse bounce
-    # Cycles' sample clamping (0 = off): the mean of a path contribution's |R|, |G|, |B| is
-    # scaled down to this; "direct" is light reaching the camera after at most one bounce.
-    clamp_direct: float = 0.0
-    clamp_indirect: float = 0.0
-    # Cycles' Filter Glossy (0 = off): after rough bounces, glossy lobes get a GGX alpha of at
-    # least sqrt(1 - p / filter_glossy) / 2, p the smallest BSDF pdf on the path so far.
-    filter_glossy: float = 0.0
-    # Adaptive sampling (engine/adaptive.py, Cycles' semantics): pixels stop once their noise
-    # is below the threshold (0 = automatic from the samples); min samples 0 = automatic.
-    adaptive: bool = False
-    adaptive_threshold: float = 0.01
-    adaptive_min_samples: int = 0
-
-    def __post_init__(self):
-        if self.border is None:
-            object.__setattr__(self, "border", (0, 0, self.width, self.height))
-
-    def replace(self, **kw) -> "Settings":
-        return dataclasses.replace(self, **kw)
-
-
-@dataclass(frozen=True)
 class Scene:
     mesh: Mesh
     materials: Materials
@@ -568,12 +475,6 @@ def to_plain(obj):
     if dataclasses.is_dataclass(obj):
         return {f.name: to_plain(getattr(obj, f.name)) for f in fields(obj)}
     return obj
-
-
-# Settings that say how many samples to take, where and how fast - not what the image
-# converges to: partial renders differing only in these merge into one (render.py merge).
-SAMPLING_ONLY = ("samples", "sample_offset", "time_limit", "noise_target", "threads", "batch_size", "border",
-                 "seed", "persistent")
 
 
 def digest(value) -> str:

@@ -113,7 +113,8 @@ class RenderSession:
         self.layout = self.integrator.layout
         self.film = Film(s.width, s.height, s.passes, s.film_transparent, adaptive=s.adaptive)
         cores = s.threads or workers.available_cores()
-        # Worker processes pay ~1 s to start; worth it only for renders of several items.
+        # Worker processes are slow to start (bench/results/pipeline/report.md); worth it only
+        # for renders of several items.
         self.processes = (cores if cores > 1 and self.integrator.work_items() >= 2 * cores and workers.can_spawn()
                           else 0)
         if pool is not None:

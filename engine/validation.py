@@ -10,58 +10,37 @@ import os
 
 import numpy as np
 
+from . import settings as declared
 from .errors import EmberError
-from .rng import PATTERNS
-from .integrators import NAMES as INTEGRATORS, REGISTRY
-from .integrators.irradiance.cache import WEIGHTS
-from .integrators.irradiance.integrator import GATHER_MODES, ICACHE_VIEWS
+from .integrators import REGISTRY, choices, honours
 from .integrators.path import ITEM_BATCHES
-from .integrators.photon.photon_map import KERNELS
 from .passes import NAMES as PASS_NAMES
-from .scene import FILTERS, RAY_ALL, RAY_CAMERA, STRATEGIES, Scene, Settings
+from .scene import RAY_ALL, RAY_CAMERA, Scene
 
 
 def validate(scene: Scene) -> None:
-    s = scene.settings
-    problems = []
-    if s.width < 1 or s.height < 1:
-        problems.append(f"resolution must be at least 1x1 (got {s.width}x{s.height})")
-    x0, y0, x1, y1 = s.border
-    if not (0 <= x0 < x1 <= s.width and 0 <= y0 < y1 <= s.height):
-        problems.append(f"render border {s.border} is empty or outside the {s.width}x{s.height} frame")
-    if s.samples < 1:
-        problems.append(f"samples must be at least 1 (got {s.samples})")
-    if s.max_depth < 0:
-        problems.append(f"max depth must be >= 0 (got {s.max_depth})")
-    if s.time_limit < 0:
-        problems.append(f"time limit must be >= 0 (got {s.time_limit})")
-    if s.batch_size < 1:
-        problems.append(f"batch size must be positive (got {s.batch_size})")
-    if s.filter not in FILTERS:
-        problems.append(f"unknown pixel filter {s.filter!r} (use one of {', '.join(FILTERS)})")
-    if not s.filter_width > 0:
-        problems.append(f"filter width must be positive (got {s.filter_width})")
-    if s.strategy not in STRATEGIES:
-        problems.append(f"unknown strategy {s.strategy!r} (use one of {', '.join(STRATEGIES)})")
-    if s.pattern not in PATTERNS:
-        problems.append(f"unknown sampling pattern {s.pattern!r} (use one of {', '.join(PATTERNS)})")
-    if not s.noise_target >= 0:
-        problems.append(f"noise target must be >= 0 (got {s.noise_target})")
-    if s.integrator not in INTEGRATORS:
-        problems.append(f"unknown integrator {s.integrator!r} (use one of {', '.join(INTEGRATORS)})")
-    problems += sample_offset_problems(s)
-    problems += photon_problems(s)
-    problems += icache_problems(s)
-    unknown = sorted(set(s.passes) - set(PASS_NAMES))
-    if unknown:
-        problems.append(f"unknown render pass(es) {', '.join(unknown)} (use some of {', '.join(PASS_NAMES)})")
-    problems += light_path_problems(s)
-    problems += lens_problems(scene.camera)
-    problems += sampling_problems(s)
+    problems = settings_problems(scene.settings) + lens_problems(scene.camera)
     if problems:
         raise EmberError("Invalid render settings: " + "; ".join(problems))
     check_light_values(scene)
     check_memory(scene)
+
+
+def settings_problems(s) -> list[str]:
+    """Each declared setting within its range or among its choices (engine/settings.py), and
+    what a range cannot say: the border inside the frame, a sample offset the integrator
+    allows, passes Ember has."""
+    problems = [f"{d.name.replace('_', ' ')} {p}" for d in declared.FIELDS
+                if (p := declared.problem(d, getattr(s, d.name), choices(d) if d.kind is str else None))]
+    x0, y0, x1, y1 = s.border
+    if not (0 <= x0 < x1 <= s.width and 0 <= y0 < y1 <= s.height):
+        problems.append(f"render border {tuple(s.border)} is empty or outside the {s.width}x{s.height} frame "
+                        "(enlarge the render region or disable it)")
+    problems += sample_offset_problems(s)
+    unknown = sorted(set(s.passes) - set(PASS_NAMES))
+    if unknown:
+        problems.append(f"unknown render pass(es) {', '.join(unknown)} (use some of {', '.join(PASS_NAMES)})")
+    return problems
 
 
 # Integrators that render negative lights as Cycles does (negative radiance; the light set
@@ -124,7 +103,8 @@ def check_light_values(scene: Scene) -> None:
 # ---- memory -------------------------------------------------------------------------------
 # Bytes per film pixel: running sums and squares (2 x 24), count (8), the noise snapshot (12),
 # plus the transient (H, W, 4) images and float64 means made when the film is shown or
-# saved, and Blender's render result (measured peak over a 2048x2048 render: ~0.2 KB/pixel).
+# saved, and Blender's render result (set from the measured peak of a large render:
+# bench/results/full/code_choices.md).
 FILM_BYTES_PER_PIXEL = 220
 # Per path of a batch in a tracing process: ray, hit, throughput and shading state arrays
 # (float64 (N,3) each) and NumPy temporaries of one bounce.
@@ -213,74 +193,13 @@ def has_light(scene: Scene) -> bool:
                     and (getattr(world, "image", None) is None or np.max(np.abs(world.image)) > 0)))
 
 
-PHOTON_VIEWS = ("full", "global", "caustic", "positions", "indirect")
-
-
 def sample_offset_problems(s) -> list[str]:
     """A sample offset needs an integrator whose samples are independent of each other."""
-    if s.sample_offset < 0:
-        return [f"sample offset must be >= 0 (got {s.sample_offset})"]
-    cls = REGISTRY.get(s.integrator)
-    if s.sample_offset and cls is not None and not cls.sample_offset:
+    if s.sample_offset and s.integrator in REGISTRY and not honours(declared.DECLARED["sample_offset"], s.integrator,
+                                                                        lambda name: getattr(s, name)):
         return [f"a sample offset does not apply to the '{s.integrator}' integrator (each of its passes "
                 "depends on the ones before; render its frames whole)"]
     return []
-
-
-def photon_problems(s) -> list[str]:
-    """The photon-mapping settings (checked whatever the integrator: they are saved with it)."""
-    problems = [f"{name.replace('_', ' ')} must be >= 0 (got {getattr(s, name)})"
-                for name in ("photons", "caustic_photons", "gather_rays") if getattr(s, name) < 0]
-    problems += [f"{name.replace('_', ' ')} must be >= 0 m (got {getattr(s, name)})"
-                 for name in ("global_radius", "caustic_radius") if not getattr(s, name) >= 0]
-    if not s.ppm_radius >= 0:
-        problems.append(f"progressive photon radius must be >= 0 m (got {s.ppm_radius})")
-    if not 0 < s.ppm_alpha < 1:
-        problems.append(f"progressive photon alpha must be in (0, 1) (got {s.ppm_alpha})")
-    if s.photon_k < 2:
-        problems.append(f"photons per estimate must be at least 2 (got {s.photon_k})")
-    if s.photon_kernel not in KERNELS:
-        problems.append(f"unknown photon kernel {s.photon_kernel!r} (use one of {', '.join(KERNELS)})")
-    if s.photon_view not in PHOTON_VIEWS:
-        problems.append(f"unknown photon view {s.photon_view!r} (use one of {', '.join(PHOTON_VIEWS)})")
-    return problems
-
-
-ICACHE_RAYS = (50, 2000)
-ICACHE_A = (0.05, 0.5)  # the seed recommends 0.1-0.35; a little either side for studies
-ICACHE_ORDER = (2, 8)  # radiance caching's harmonics order: 4 .. 64 coefficients per channel
-
-
-def icache_problems(s) -> list[str]:
-    """The irradiance-cache settings (checked whatever the integrator, as photon_problems)."""
-    problems = []
-    if not ICACHE_RAYS[0] <= s.icache_rays <= ICACHE_RAYS[1]:
-        problems.append(f"irradiance-cache rays per record must be in {ICACHE_RAYS[0]}-{ICACHE_RAYS[1]} "
-                        f"(got {s.icache_rays})")
-    if not ICACHE_A[0] <= s.icache_a <= ICACHE_A[1]:
-        problems.append(f"irradiance-cache accuracy a must be in {ICACHE_A[0]}-{ICACHE_A[1]} (got {s.icache_a})")
-    if not ICACHE_ORDER[0] <= s.icache_radiance_order <= ICACHE_ORDER[1]:
-        problems.append(f"radiance-cache harmonics order must be in {ICACHE_ORDER[0]}-{ICACHE_ORDER[1]} "
-                        f"(got {s.icache_radiance_order})")
-    for name, value, allowed in (("weight", s.icache_weight, WEIGHTS), ("gather", s.icache_gather, GATHER_MODES),
-                                 ("view", s.icache_view, ICACHE_VIEWS)):
-        if value not in allowed:
-            problems.append(f"unknown irradiance-cache {name} {value!r} (use one of {', '.join(allowed)})")
-    return problems
-
-
-def light_path_problems(s) -> list[str]:
-    """What is wrong with the path tracer's bounce limits and clamping (empty if nothing)."""
-    problems = []
-    for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "transparent_bounces"):
-        least = 0 if name == "transparent_bounces" else 1
-        if not getattr(s, name) >= least:
-            problems.append(f"{name.replace('_', ' ')} must be at least {least} (got {getattr(s, name)})")
-    for name in ("clamp_direct", "clamp_indirect", "filter_glossy"):
-        value = getattr(s, name)
-        if not (value >= 0 and math.isfinite(value)):
-            problems.append(f"{name.replace('_', ' ')} must be a finite number >= 0, 0 = off (got {value})")
-    return problems
 
 
 def lens_problems(camera) -> list[str]:
@@ -296,18 +215,19 @@ def lens_problems(camera) -> list[str]:
     return problems
 
 
+# Scene settings only the path tracer honours (the photon integrators trace every ray against
+# the whole scene and use Max Bounces alone).
+PATH_ONLY = tuple(d for d in declared.FIELDS if d.source == declared.EMBER and d.honoured_by == ("path",))
+
+
 def path_only_warnings(scene) -> list[str]:
-    """Warnings for controls that only the path tracer honours, when another integrator
-    renders a scene that uses them (the photon integrators trace every ray against the whole
-    scene and use Max Bounces alone)."""
+    """Warnings for settings that only the path tracer honours (PATH_ONLY, ray visibility),
+    when another integrator renders a scene that uses them."""
     s = scene.settings
     if s.integrator == "path":
         return []
     out = []
-    default = Settings()
-    names = ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "transparent_bounces",
-             "caustics_reflective", "caustics_refractive", "clamp_direct", "clamp_indirect", "filter_glossy")
-    changed = [n.replace("_", " ") for n in names if getattr(s, n) != getattr(default, n)]
+    changed = [d.name.replace("_", " ") for d in PATH_ONLY if getattr(s, d.name) != d.default]
     if changed:
         out.append(f"The '{s.integrator}' integrator ignores {', '.join(changed)} (Path Tracing only; "
                    "it uses Max Bounces alone).")
@@ -317,13 +237,3 @@ def path_only_warnings(scene) -> list[str]:
         out.append(f"The '{s.integrator}' integrator ignores ray visibility and holdouts (Path Tracing only); "
                    "every object is seen by every ray (lights and the world keep their camera visibility).")
     return out
-
-
-def sampling_problems(s) -> list[str]:
-    """Adaptive sampling's settings (checked whether or not it is on: they are saved with it)."""
-    problems = []
-    if not 0 <= s.adaptive_threshold <= 1:
-        problems.append(f"noise threshold must be between 0 and 1 (0 = automatic) (got {s.adaptive_threshold})")
-    if not 0 <= s.adaptive_min_samples <= 4096:
-        problems.append(f"adaptive min samples must be 0..4096 (0 = automatic) (got {s.adaptive_min_samples})")
-    return problems

@@ -92,7 +92,7 @@ def box_quads(lo, hi, inward=False) -> np.ndarray:
 def settings(**kw) -> Settings:
     """Small, independent samples (honest per-pixel variances for the z-tests)."""
     base = dict(width=32, height=32, samples=16, seed=1, filter="BOX", filter_width=1.0, batch_size=1 << 15,
-                pattern="random", threads=1)
+                pattern="random", threads=1, integrator="path")  # the core's default is auto
     base.update(kw)
     return Settings(**base)
 

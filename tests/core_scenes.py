@@ -78,7 +78,9 @@ def uv_sphere(center, radius, n_theta=24, n_phi=48):
 
 
 def settings(**kw):
-    base = dict(width=16, height=16, samples=8, seed=1, filter="BOX", filter_width=1.0, batch_size=4096)
+    """Small renders by the path tracer (the core's default is `auto`, which may choose another)."""
+    base = dict(width=16, height=16, samples=8, seed=1, filter="BOX", filter_width=1.0, batch_size=4096,
+                integrator="path")
     base.update(kw)
     return Settings(**base)
 
@@ -102,12 +104,12 @@ def sphere_with_point_light(albedo=0.5, intensity=np.pi, radius=0.0, soft=False,
 
 def many_lights(n=1000, kind="triangle", size=0.1, lift=0.3, extent=15.0, decades=3.0, layout=0, radius=0.0, **kw):
     """n small lights of very different power spread over a large diffuse floor (40 m x 40 m,
-    albedo 0.5) under a black world, seen from above at an angle: the many-lights case of
-    issue 11. kind "triangle": emissive squares of side `size` at height `lift` facing down
-    (two triangles each, two-sided); "point": point lights at height `lift` (delta, or spheres of
-`radius`). Positions are
-    uniform over [-extent, extent]^2, radiance or intensity log-uniform over `decades` decades
-    (total power about the same for every n; `layout` seeds both). A few boxes cast shadows."""
+    albedo 0.5) under a black world, seen from above at an angle: the many-lights case
+    (bench/results/many_lights/report.md). kind "triangle": emissive squares of side `size` at
+    height `lift` facing down (two triangles each, two-sided); "point": point lights at height
+    `lift` (delta, or spheres of `radius`). Positions are uniform over [-extent, extent]^2,
+    radiance or intensity log-uniform over `decades` decades (total power about the same for
+    every n; `layout` seeds both). A few boxes cast shadows."""
     rng = np.random.default_rng(layout)
     xy = rng.uniform(-extent, extent, (n, 2))
     level = 10.0 ** rng.uniform(0.0, decades, n)

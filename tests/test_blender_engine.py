@@ -488,9 +488,9 @@ def test_properties_defaults_and_limits():
             ('AUTO', 64, 64, 0, 0.0, 131072, 'SOBOL')
         props = type(e).bl_rna.properties
         assert props["samples"].hard_min == 1
-        assert (props["max_depth"].hard_min, props["max_depth"].hard_max) == (1, 1024)
+        assert (props["max_depth"].hard_min, props["max_depth"].hard_max) == (0, 1024)  # one range, as the core's
         assert props["time_limit"].hard_min == 0.0
-        assert props["batch_size"].hard_min == 1024
+        assert (props["batch_size"].hard_min, props["batch_size"].soft_min) == (1, 1024)
         assert [i.identifier for i in props["integrator"].enum_items] == ['PATH', 'PHOTON', 'PPM', 'ICACHE', 'PATH_CAUSTIC', 'AUTO']  # the registry's order
         e.samples = 0
         assert e.samples == 1  # clamped

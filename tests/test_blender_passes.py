@@ -145,13 +145,13 @@ def _denoising_passes(engine, samples):
 def test_denoising_albedo_and_normal_match_cycles_and_are_noise_free():
     """Cornell box (diffuse, 32x32): away from edges Ember's albedo and normal are the same at
     2 and 16 spp (noise-free) and equal Cycles' (16 spp; its denoising normal is in camera
-    space) to float precision in most pixels (measured: 75 % albedo, 70 % normal); the rest
-    are edge pixels, where the renderers' filter samples differ (95th percentile 0.055, 0.078)."""
+    space) to float precision in most pixels; the rest are edge pixels, where the renderers'
+    filter samples differ (the margins: bench/results/denoise/report.md)."""
     albedo_2, normal_2 = _denoising_passes("EMBER", 2)
     albedo, normal = _denoising_passes("EMBER", 16)
     c_albedo, c_normal = _denoising_passes("CYCLES", 16)
     for mine, few in ((albedo, albedo_2), (normal, normal_2)):
-        assert np.all(np.abs(mine - few) < 1e-6, axis=-1).mean() > 0.5  # measured 0.75, 0.60
+        assert np.all(np.abs(mine - few) < 1e-6, axis=-1).mean() > 0.5
     for mine, theirs in ((albedo, c_albedo), (normal, c_normal)):
         err = np.abs(mine - theirs).max(axis=-1)
         assert (err < 1e-5).mean() > 0.6, (err < 1e-5).mean()
@@ -186,7 +186,7 @@ def _render_rgb(sc, path):
 def test_compositor_denoise_brings_ember_closer_to_the_reference(tmp_path):
     """Cornell box 64x64 at 16 spp through bpy.ops.render.render and the compositor's Denoise
     node fed Ember's albedo and normal: relMSE against the Cycles reference falls well below
-    the noisy image's (measured 1.74e-2 -> 2.64e-3)."""
+    the noisy image's (bench/results/denoise/report.md)."""
     sc = _cornell(size=64, samples=16)
     sc.view_layers[0].ember.denoising_store_passes = True
     reference = imageio.read_rgb(ROOT / "tests" / "data" / "cornell_box_cycles.exr")
@@ -239,9 +239,10 @@ def test_film_and_passes_panels_are_registered():
 
 def test_depth_position_normal_match_cycles():
     """Cornell box 32x32, 16 spp: Depth, Position and Normal, means over the pixel's samples
-    as Cycles writes them, agree with Cycles' to a median of 0.014 (Depth, Position, in
-    metres; 1e-7 for Normal); edge pixels differ by the renderers' own filter samples
-    (measured medians 0.0135, 0.0137; as the first sample's hit instead: 0.085, 0.17)."""
+    as Cycles writes them, agree with Cycles' in the median pixel (Depth and Position to a few
+    centimetres, Normal to float precision); edge pixels differ by the renderers' own filter
+    samples. The first sample's hit instead of the mean would be far off (measured in
+    bench/results/denoise/report.md)."""
     images = {}
     for engine in ("EMBER", "CYCLES"):
         sc = _cornell(engine, size=32, samples=16)

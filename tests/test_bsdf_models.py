@@ -13,7 +13,7 @@ import pytest
 
 from ember.engine import sampling
 from ember.engine.bsdf import dielectric, fresnel, microfacet, phong
-from stats import chi2_test, expected_counts_2d, sidak_alpha
+from stats import ChiSquareTest, Discrete, Hemisphere, Mapped
 
 N_CHI2 = 100_000
 N_MC = 100_000
@@ -24,10 +24,15 @@ DIELECTRIC_ALPHA = (0.05, 0.3, 1.0)
 ETAS = (1.5, 1.0 / 1.5)
 TWO_PI = 2.0 * np.pi
 PHI_O = 1.0  # azimuth of wo: keeps the frames honest (nothing lines up with x)
+GRID = (30, 48)  # cells of every directional fit: (polar coordinate, azimuth)
+
+
+def _seed(*key):
+    return [int(k * 1000) for k in key]
 
 
 def _rng(*key):
-    return np.random.default_rng([int(k * 1000) for k in key])
+    return np.random.default_rng(_seed(*key))
 
 
 def _wo(theta_deg, n, phi=PHI_O):
@@ -40,77 +45,20 @@ def _unit_from_polar(cos_t, sin_t, phi):
     return np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=-1)
 
 
-def _flat(density_of_directions):
-    """Adapt density(x (M,), y (M,)) to the broadcast (any shape) form the integrators pass."""
-    def density(x, y):
-        x, y = np.broadcast_arrays(x, y)
-        return density_of_directions(x.ravel(), y.ravel()).reshape(x.shape)
-    return density
-
-
-# ----------------------------------------------------------------------------------------------
-# Expected counts with support boundaries inside cells
-
-def _cell_integrals(density, x_lo, x_hi, y_lo, y_hi, sub, order):
-    """Integral of density over each cell (K,), composite Gauss-Legendre (sub x sub subcells)."""
-    t, w = np.polynomial.legendre.leggauss(order)
-    s = (np.arange(sub)[:, None] + 0.5 * (t[None, :] + 1.0)).ravel() / sub  # nodes in [0, 1]
-    ws = np.tile(w, sub) / (2.0 * sub)
-    dx, dy = x_hi - x_lo, y_hi - y_lo
-    x = x_lo[:, None, None] + dx[:, None, None] * s[None, :, None]
-    y = y_lo[:, None, None] + dy[:, None, None] * s[None, None, :]
-    values = density(*np.broadcast_arrays(x, y))
-    return np.einsum("kij,i,j->k", values, ws, ws) * dx * dy, values
-
-
-def _expected(density, x_edges, y_edges, n_samples):
-    """Expected counts on the grid; cells cut by the pdf's support edge get a fine quadrature.
-
-    A lobe clipped by the horizon (or by total internal reflection) jumps to 0 along a curve,
-    which the order-4 rule of expected_counts_2d integrates badly. Such cells are found by
-    probing for mixed zero / non-zero values, widened by one cell, and re-integrated with
-    8 x 8 sub-cells of order 3.
-    """
-    expected = expected_counts_2d(density, x_edges, y_edges, n_samples)
-    xi, yi = np.meshgrid(np.arange(len(x_edges) - 1), np.arange(len(y_edges) - 1), indexing="ij")
-    xi, yi = xi.ravel(), yi.ravel()
-    box = (x_edges[xi], x_edges[xi + 1], y_edges[yi], y_edges[yi + 1])
-    _, probe = _cell_integrals(density, *box, sub=3, order=2)
-    probe = probe.reshape(len(xi), -1)
-    cut = ((probe.min(axis=1) == 0.0) & (probe.max(axis=1) > 0.0)).reshape(expected.shape)
-    wide = cut.copy()
-    wide[1:] |= cut[:-1]
-    wide[:-1] |= cut[1:]
-    wide |= np.roll(wide, 1, axis=1) | np.roll(wide, -1, axis=1)
-    k = np.flatnonzero(wide.ravel())
-    if len(k):
-        fine, _ = _cell_integrals(density, *(b[k] for b in box), sub=8, order=3)
-        expected.ravel()[k] = fine * n_samples
-    # A support sliver thinner than any node (the horizon passing 1e-3 rad from a lobe's pole)
-    # integrates to 0 here; the floor lets such a cell pool instead of failing outright. Support
-    # itself is asserted per sample by each case (_assert_support).
-    return np.maximum(expected, 1e-12)
-
-
-def _assert_support(pdf_at_samples):
-    """Every sample the sampler calls valid lies where the pdf function is positive."""
-    assert np.all(pdf_at_samples > 0.0), "a sample landed where pdf() is 0"
-
-
-def _histogram(x, y, x_edges, y_edges):
-    tol = 1e-9
-    assert np.all((x >= x_edges[0] - tol) & (x <= x_edges[-1] + tol)), "x outside the domain"
-    assert np.all((y >= y_edges[0] - tol) & (y <= y_edges[-1] + tol)), "y outside the domain"
-    return np.histogram2d(np.clip(x, x_edges[0], x_edges[-1]), np.clip(y, y_edges[0], y_edges[-1]),
-                          bins=[x_edges, y_edges])[0]
-
-
 def _azimuth(v):
     return np.mod(np.arctan2(v[:, 1], v[:, 0]), TWO_PI)
 
 
-PHI_EDGES = np.linspace(0.0, TWO_PI, 49)
-UNIT_EDGES = np.linspace(0.0, 1.0, 31)
+def _rows(v, m):
+    """v (3,) as m read-only rows."""
+    return np.broadcast_to(v, (m, 3))
+
+
+def _fit(domain, sampler, pdf, seed, resolution=GRID):
+    """The chi-square test of a BSDF sampler: u (N, 3) (two for the direction, one for the
+    lobe), samples of pdf 0 rejected, cells cut by the lobe's support edge (the horizon, total
+    internal reflection) integrated finely."""
+    return ChiSquareTest(domain, sampler, pdf, resolution, N_CHI2, seed=seed, sample_dim=3, refine=True)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -121,50 +69,42 @@ def _phong_args(kd, ks, n, rows):
             np.broadcast_to(np.asarray(ks, float), (rows, 3)), np.full(rows, float(n)))
 
 
+def _phong_sampler(kd, ks, n, wo):
+    def sampler(u):
+        wi, _, pdf = phong.sample(*_phong_args(kd, ks, n, len(u)), _rows(wo, len(u)), u[:, :2], u[:, 2])
+        return wi, pdf > 0.0
+    return sampler
+
+
+def _phong_pdf(kd, ks, n, wo):
+    return lambda wi: phong.pdf(*_phong_args(kd, ks, n, len(wi)), _rows(wo, len(wi)), wi)
+
+
 def case_phong_lobe(theta, n):
     """Pure glossy lobe. Coordinates around R: s = 1 - exp(-n (1 - cos alpha)) in [0, 1 -
     exp(-2n)] and the azimuth; ds = n (1 - s) d(cos alpha), so even n = 1e6 fills the grid."""
-    kd, ks, nn = _phong_args(0.0, 0.8, n, N_CHI2)
-    wo = _wo(theta, N_CHI2)
-    rng = _rng(1, theta, np.log10(n))
-    wi, _, pdf = phong.sample(kd, ks, nn, wo, rng.random((N_CHI2, 2)), rng.random(N_CHI2))
-    R = wo[:1] * [-1.0, -1.0, 1.0]
-    t, b = sampling.frame_from_z(R)
-    valid = pdf > 0.0
-    _assert_support(phong.pdf(kd[valid], ks[valid], nn[valid], wo[valid], wi[valid]))
-    d = wi[valid] - R
-    s = -np.expm1(-n * 0.5 * np.sum(d * d, axis=1))
-    phi = _azimuth(sampling.to_local(wi[valid], t, b, R))
-    s_edges = np.linspace(0.0, -np.expm1(-2.0 * n), 31)
+    wo = _wo(theta, 1)[0]
+    R = wo * [-1.0, -1.0, 1.0]
+    t, b = (v[0] for v in sampling.frame_from_z(R[None]))
 
-    def density(s, phi):
+    def coordinates(wi):
+        d = wi - R
+        return -np.expm1(-n * 0.5 * np.sum(d * d, axis=1)), _azimuth(sampling.to_local(wi, t, b, R))
+
+    def points(s, phi):
         one_minus_cos = -np.log1p(-s) / n
         sin_a = np.sqrt(one_minus_cos * (2.0 - one_minus_cos))
-        w = sampling.to_world(_unit_from_polar(1.0 - one_minus_cos, sin_a, phi), t, b, R)
-        m = len(s)
-        return phong.pdf(*_phong_args(0.0, 0.8, n, m), np.broadcast_to(wo[0], (m, 3)), w) \
-            / (n * (1.0 - s))
+        return sampling.to_world(_unit_from_polar(1.0 - one_minus_cos, sin_a, phi), t, b, R), 1.0 / (n * (1.0 - s))
 
-    return _histogram(s, phi, s_edges, PHI_EDGES), _expected(_flat(density), s_edges, PHI_EDGES,
-                                                            N_CHI2)
+    domain = Mapped(((0.0, -np.expm1(-2.0 * n)), (0.0, TWO_PI)), coordinates, points, periodic=(False, True))
+    return _fit(domain, _phong_sampler(0.0, 0.8, n, wo), _phong_pdf(0.0, 0.8, n, wo), _seed(1, theta, np.log10(n)))
 
 
 def case_phong_mixture(theta, n, kd, ks):
     """Diffuse + glossy over the hemisphere in (cos theta, phi); the horizon is a cell edge."""
-    args = _phong_args(kd, ks, n, N_CHI2)
-    wo = _wo(theta, N_CHI2)
-    rng = _rng(2, theta, n, kd[0], ks[0])
-    wi, _, pdf = phong.sample(*args, wo, rng.random((N_CHI2, 2)), rng.random(N_CHI2))
-    valid = pdf > 0.0
-    _assert_support(phong.pdf(*_phong_args(kd, ks, n, valid.sum()), wo[valid], wi[valid]))
-
-    def density(c, phi):
-        m = len(c)
-        w = _unit_from_polar(c, np.sqrt(np.maximum(0.0, 1.0 - c * c)), phi)
-        return phong.pdf(*_phong_args(kd, ks, n, m), np.broadcast_to(wo[0], (m, 3)), w)
-
-    return (_histogram(wi[valid, 2], _azimuth(wi[valid]), UNIT_EDGES, PHI_EDGES),
-            _expected(_flat(density), UNIT_EDGES, PHI_EDGES, N_CHI2))
+    wo = _wo(theta, 1)[0]
+    return _fit(Hemisphere(), _phong_sampler(kd, ks, n, wo), _phong_pdf(kd, ks, n, wo),
+                _seed(2, theta, n, kd[0], ks[0]))
 
 
 # (theta, n, kd, ks); max(kd) + max(ks) != 1 in most, so lobe probabilities that are not
@@ -205,80 +145,77 @@ def _half_vector_from_coordinates(v, phi, alpha):
             2.0 * alpha ** 2 * (1.0 + a) ** 1.25 * cos_t ** 3)
 
 
+def _unit(v):
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
 def case_ggx(theta, alpha):
-    wo = _wo(theta, N_CHI2)
-    u = _rng(3, theta, alpha).random((N_CHI2, 2))
-    wi, _, pdf = microfacet.sample_reflection(np.full(N_CHI2, alpha), wo, u)
-    valid = pdf > 0.0
-    _assert_support(microfacet.pdf_reflection(alpha, wo[valid], wi[valid]))
-    h = wo[valid] + wi[valid]
-    v, phi = _half_vector_coordinates(h / np.linalg.norm(h, axis=1, keepdims=True), alpha)
+    wo = _wo(theta, 1)[0]
 
-    def density(v, phi):
+    def sampler(u):
+        wi, _, pdf = microfacet.sample_reflection(np.full(len(u), alpha), _rows(wo, len(u)), u[:, :2])
+        return wi, pdf > 0.0
+
+    def points(v, phi):
         h, jac = _half_vector_from_coordinates(v, phi, alpha)
-        w_o = np.broadcast_to(wo[0], h.shape)
-        w_i = 2.0 * np.sum(w_o * h, axis=1, keepdims=True) * h - w_o
+        c = h @ wo
         # d omega_i = 4 |wo . h| d omega_h for a reflection.
-        return microfacet.pdf_reflection(alpha, w_o, w_i) * 4.0 * np.abs(np.sum(w_o * h, 1)) * jac
+        return 2.0 * c[:, None] * h - wo, 4.0 * np.abs(c) * jac
 
-    return _histogram(v, phi, UNIT_EDGES, PHI_EDGES), _expected(_flat(density), UNIT_EDGES,
-                                                               PHI_EDGES, N_CHI2)
+    domain = Mapped(((0.0, 1.0), (0.0, TWO_PI)), lambda wi: _half_vector_coordinates(_unit(wo + wi), alpha), points,
+                    periodic=(False, True))
+    return _fit(domain, sampler, lambda wi: microfacet.pdf_reflection(alpha, _rows(wo, len(wi)), wi),
+                _seed(3, theta, alpha))
 
 
 def case_rough_dielectric(theta, alpha, eta):
-    """Both lobes: histograms over the half vector, one per lobe, fitted together. eta is the
-    relative index seen from wo; eta < 1 puts wo inside an object of IOR 1 / eta (wo.z < 0, the
-    caller's convention), so both sides of the interface are exercised."""
+    """Both lobes in one grid: x = v of the half vector for reflection, 1 + v for refraction.
+    eta is the relative index seen from wo; eta < 1 puts wo inside an object of IOR 1 / eta
+    (wo.z < 0, the caller's convention), so both sides of the interface are exercised."""
     inside = eta < 1.0
     eta_obj = 1.0 / eta if inside else eta
-    wo = _wo(theta, N_CHI2) * ([1.0, 1.0, -1.0] if inside else 1.0)
-    rng = _rng(4, theta, alpha, eta)
-    wi, _, pdf = dielectric.sample_rough(np.full(N_CHI2, alpha), eta_obj, wo,
-                                         rng.random((N_CHI2, 2)), rng.random(N_CHI2))
-    valid = pdf > 0.0
-    _assert_support(dielectric.pdf_rough(alpha, eta_obj, wo[valid], wi[valid]))
     flip = -1.0 if inside else 1.0
-    wo_up, wi_up = wo[0] * flip, wi[valid] * flip  # wo on +z, relative index eta
-    reflected = wi_up[:, 2] > 0.0
-    h = np.where(reflected[:, None], wo_up + wi_up, -(wo_up + eta * wi_up))
-    h *= np.sign(h[:, 2:3]) / np.linalg.norm(h, axis=1, keepdims=True)
-    v, phi = _half_vector_coordinates(h, alpha)
+    wo = _wo(theta, 1)[0] * flip
+    wo_up = wo * flip  # on +z, relative index eta
 
-    def density(reflection):
-        def f(v, phi):
-            h, jac = _half_vector_from_coordinates(v, phi, alpha)
-            w_o = np.broadcast_to(wo_up, h.shape)
-            c = np.sum(w_o * h, axis=1)
-            if reflection:
-                w_i = 2.0 * c[:, None] * h - w_o
-                jac_i = 4.0 * np.abs(c)
-                on_lobe_side = w_i[:, 2] > 0.0
-            else:  # Snell through h; no transmission under total internal reflection
-                cos2_t = 1.0 - (1.0 - c * c) / (eta * eta)
-                cos_t = np.sqrt(np.maximum(cos2_t, 0.0))
-                w_i = -w_o / eta + (c / eta - cos_t)[:, None] * h
-                # Walter et al. 2007 eq. 17: d omega_h / d omega_i = eta^2 |wi.h| / |wo + eta wi|^2.
-                d = w_o + eta * w_i
-                jac_i = np.sum(d * d, axis=1) / (eta * eta * np.maximum(np.abs(np.sum(w_i * h, 1)),
-                                                                        1e-300))
-                on_lobe_side = (w_i[:, 2] < 0.0) & (cos2_t > 0.0) & (c > 0.0)
-            # A direction on the other side belongs to the other lobe (through another h).
-            p = dielectric.pdf_rough(alpha, eta_obj, w_o * flip, w_i * flip) * jac_i * jac
-            return np.where(on_lobe_side, p, 0.0)
-        return _flat(f)
+    def sampler(u):
+        wi, _, pdf = dielectric.sample_rough(np.full(len(u), alpha), eta_obj, _rows(wo, len(u)), u[:, :2], u[:, 2])
+        return wi, pdf > 0.0
 
-    observed = [_histogram(v[m], phi[m], UNIT_EDGES, PHI_EDGES) for m in (reflected, ~reflected)]
-    expected = [_expected(density(r), UNIT_EDGES, PHI_EDGES, N_CHI2) for r in (True, False)]
-    return np.stack(observed), np.stack(expected)
+    def coordinates(wi):
+        wi_up = wi * flip
+        reflected = wi_up[:, 2] > 0.0
+        h = np.where(reflected[:, None], wo_up + wi_up, -(wo_up + eta * wi_up))
+        v, phi = _half_vector_coordinates(h * np.sign(h[:, 2:3]) / np.linalg.norm(h, axis=1, keepdims=True), alpha)
+        return v + np.where(reflected, 0.0, 1.0), phi
+
+    def points(x, phi):
+        refracted = x >= 1.0
+        h, jac = _half_vector_from_coordinates(x - refracted, phi, alpha)
+        c = h @ wo_up
+        w_r = 2.0 * c[:, None] * h - wo_up
+        # Snell through h; no transmission under total internal reflection.
+        cos2_t = 1.0 - (1.0 - c * c) / (eta * eta)
+        w_t = -wo_up / eta + (c / eta - np.sqrt(np.maximum(cos2_t, 0.0)))[:, None] * h
+        # Walter et al. 2007 eq. 17: d omega_h / d omega_i = eta^2 |wi.h| / |wo + eta wi|^2.
+        d = wo_up + eta * w_t
+        jac_t = np.sum(d * d, axis=1) / (eta * eta * np.maximum(np.abs(np.sum(w_t * h, 1)), 1e-300))
+        # A direction on the other side belongs to the other lobe (through another h).
+        on_lobe_side = np.where(refracted, (w_t[:, 2] < 0.0) & (cos2_t > 0.0) & (c > 0.0), w_r[:, 2] > 0.0)
+        w_i = np.where(refracted[:, None], w_t, w_r)
+        return w_i * flip, np.where(on_lobe_side, np.where(refracted, jac_t, 4.0 * np.abs(c)) * jac, 0.0)
+
+    domain = Mapped(((0.0, 2.0), (0.0, TWO_PI)), coordinates, points, periodic=(False, True))
+    return _fit(domain, sampler, lambda wi: dielectric.pdf_rough(alpha, eta_obj, _rows(wo, len(wi)), wi),
+                _seed(4, theta, alpha, eta), resolution=(2 * GRID[0], GRID[1]))
 
 
 def case_smooth_dielectric_lobe_choice(theta, eta):
-    """Fraction reflected = F (two cells: reflected, refracted)."""
-    wo = _wo(theta, N_CHI2)
-    _, _, _, reflected = dielectric.sample_smooth(eta, wo, _rng(5, theta, eta).random(N_CHI2))
+    """Fraction reflected = F: two values, 0 reflected, 1 refracted."""
+    wo = _wo(theta, 1)[0]
     F = _fresnel_reference(np.cos(np.radians(theta)), eta)
-    return (np.array([reflected.sum(), (~reflected).sum()]),
-            N_CHI2 * np.array([F, 1.0 - F]))
+    return ChiSquareTest(Discrete(2), lambda u: (~dielectric.sample_smooth(eta, _rows(wo, len(u)), u[:, 0])[3]).astype(int),
+                         lambda k: np.array([F, 1.0 - F])[k], n_samples=N_CHI2, seed=_seed(5, theta, eta), sample_dim=1)
 
 
 def _fresnel_reference(cos_i, eta):
@@ -308,14 +245,11 @@ CHI2_CASES = {
        (lambda th=th, eta=eta: case_smooth_dielectric_lobe_choice(th, eta))
        for th in ANGLES for eta in ETAS if eta > 1.0 or th < 40.0},
 }
-ALPHA = sidak_alpha(0.01, len(CHI2_CASES))
 
 
 @pytest.mark.parametrize("name", list(CHI2_CASES))
 def test_chi2_goodness_of_fit(name):
-    observed, expected = CHI2_CASES[name]()
-    p_value = chi2_test(observed, expected)
-    assert p_value >= ALPHA, f"{name}: p = {p_value:.3g} < alpha = {ALPHA:.3g}"
+    CHI2_CASES[name]().check(n_tests=len(CHI2_CASES))
 
 
 # ----------------------------------------------------------------------------------------------

@@ -2,7 +2,8 @@
 at the first diffuse point between the caustic map (L S+ D) and the path tracer without
 overlap or gap, so where the caustic map is nearly exact (a smooth caustic under a flat glass
 slab, a small radius) it agrees with the unbiased path tracer (counting the slab's light
-twice or not at all is 30-50 % off); without specular surfaces it is the path tracer."""
+twice or not at all is far outside the tolerance); without specular surfaces it is the path
+tracer."""
 import numpy as np
 
 from core_scenes import box_quads, perspective, quads_mesh, settings

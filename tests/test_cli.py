@@ -93,9 +93,9 @@ def _one_clear_line(stderr, *words):
     (["ok.blend", "--resolution", "64by32"], ["--resolution", "WIDTHxHEIGHT"]),
     (["ok.blend", "--resolution", "0x32"], ["--resolution"]),
     (["ok.blend", "--time-limit", "-1"], ["--time-limit"]),
-    (["ok.blend", "--max-depth", "0"], ["--max-depth"]),
+    (["ok.blend", "--max-depth", "-1"], ["--max-depth", "at least 0"]),
     (["ok.blend", "--pattern", "halton"], ["--pattern", "sobol", "random"]),
-    (["ok.blend", "--ppm-alpha", "1.5"], ["--ppm-alpha", "between 0 and 1"]),
+    (["ok.blend", "--ppm-alpha", "1.5"], ["--ppm-alpha", "at most 0.99"]),
     (["ok.blend", "--photon-k", "1"], ["--photon-k", "at least 2"]),
     (["ok.blend", "--radiance-photons", "maybe"], ["--radiance-photons", "on or off"]),
     (["ok.blend", "--global-radius", "-1"], ["--global-radius"]),
@@ -118,7 +118,7 @@ def test_bad_input_fast(scenes, args, words):
     ("nocam.blend", [], ["camera"]),
     ("empty.blend", [], ["nothing to render"]),
     ("ok.blend", ["--integrator", "bidir"], ["integrator", "path", "photon", "ppm"]),
-    ("ok.blend", ["--integrator", "photon", "--photon-view", "photons"], ["photon view", "global"]),
+    ("ok.blend", ["--integrator", "photon", "--photon-view", "photons"], ["--photon-view", "global"]),
 ])
 def test_bad_scene_or_option(scenes, name, args, words):
     code, out, err = run(scenes, name, "-o", "x.png", *args)

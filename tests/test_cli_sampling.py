@@ -54,7 +54,7 @@ def test_progress_bar_follows_the_time_limit_and_ends_before_the_summary(scenes)
 
 @pytest.mark.parametrize("args, words", [
     (["--adaptive", "maybe"], ["--adaptive", "on or off"]),
-    (["--adaptive-threshold", "1.5"], ["--adaptive-threshold", "between 0 and 1"]),
+    (["--adaptive-threshold", "1.5"], ["--adaptive-threshold", "at most 1"]),
     (["--adaptive-threshold", "-0.1"], ["--adaptive-threshold"]),
     (["--adaptive-min-samples", "5000"], ["--adaptive-min-samples", "at most 4096"]),
     (["--animated-seed", "yes"], ["--animated-seed", "on or off"]),

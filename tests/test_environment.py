@@ -1,4 +1,4 @@
-"""Environment map light (issue 4), without Blender: the sampler's chi-square fits on synthetic
+"""Environment map light, without Blender: the sampler's chi-square fits on synthetic
 maps, pdf/eval consistency, the constant light-sampling weight inside a pixel, the direction
 -> pixel convention, what a world builds, light selection and MIS in the path tracer.
 
@@ -17,7 +17,7 @@ from ember.engine.scene import LIGHT_POINT, LIGHT_SUN, Lights, Materials, Mesh, 
 from ember.engine.session import RenderSession
 
 from core_scenes import perspective, quads_mesh, settings
-from stats import chi2_test, expected_counts_2d, sidak_alpha, spherical_coordinates
+from stats import ChiSquareTest, Mapped, Sphere, sidak_alpha
 
 N = 200_000
 H, W = 16, 32
@@ -57,47 +57,44 @@ def random_map(seed, h=H, w=W):
 
 
 # ----------------------------------------------------------------------------------------------
-# Chi-square of the sampler: histogram env-space directions on the pixel grid, expected counts
-# from the claimed pdf(d). Equirectangular pixels are cells of (phi, cos theta) (d omega =
-# dphi dcos), so the pdf, constant per pixel, is integrated exactly.
+# Chi-square of the sampler: env-space directions on the pixel grid against the claimed pdf(d).
+# Equirectangular pixels are cells of (cos theta, phi) (d omega = dcos dphi), so the pdf,
+# constant per pixel, is integrated exactly.
 
-PHI_EDGES = np.linspace(0.0, 2.0 * np.pi, W + 1)
-COS_EDGES = np.cos(np.linspace(np.pi, 0.0, H + 1))  # ascending cos theta = pixel row edges
+PIXEL_GRID = (np.cos(np.linspace(np.pi, 0.0, H + 1)), W)  # ascending cos theta = pixel row edges
 
 
 def _equirect_fit(env, seed):
-    wi, _, pdf, valid = env.sample(_u(seed))
-    assert valid.all() and np.all(pdf > 0)
-    e = wi @ env.env_from_world.T  # rigid maps only: env directions
-    cos_t, phi = spherical_coordinates(e)
-    observed = np.histogram2d(phi, np.clip(cos_t, -1, 1), bins=[PHI_EDGES, COS_EDGES])[0]
+    def sampler(u):
+        s = env.sample(u)
+        assert s.valid.all() and np.all(s.pdf > 0)
+        return s.wi
 
-    def density(phi, cos_t):
-        sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t**2))
-        e = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=-1).reshape(-1, 3)
-        return env.pdf(e @ env.world_from_env.T).reshape(phi.shape)
-
-    return observed, expected_counts_2d(density, PHI_EDGES, COS_EDGES, N)
+    # Rigid maps only: the frame's rows are the env axes in world space.
+    return ChiSquareTest(Sphere(frame=env.env_from_world), sampler, env.pdf, PIXEL_GRID, N, seed=seed)
 
 
 def _ball_fit(env, seed, n_cells=16):
-    """Mirror ball: histogram of the ball image coordinates (x, y); equal-area (d omega = 16
-    dx dy), the density is 16 pdf inside the ball, 0 outside (high-order quadrature for the rim)."""
-    wi, _, pdf, valid = env.sample(_u(seed))
-    e = wi[valid]
-    div = 2.0 * np.sqrt(np.maximum(0.5 * (1.0 - e[:, 1]), 0.0))
-    x, y = 0.5 * (e[:, 0] / div + 1.0), 0.5 * (1.0 - e[:, 2] / div)
-    edges = np.linspace(0.0, 1.0, n_cells + 1)
-    observed = np.histogram2d(x, y, bins=[edges, edges])[0]
+    """Mirror ball: the ball image coordinates (x, y); equal-area (d omega = 16 dx dy) inside
+    the ball, nothing outside (high-order quadrature for the rim). Corner samples are rejected."""
+    def coordinates(e):
+        div = 2.0 * np.sqrt(np.maximum(0.5 * (1.0 - e[:, 1]), 0.0))
+        return 0.5 * (e[:, 0] / div + 1.0), 0.5 * (1.0 - e[:, 2] / div)
 
-    def density(x, y):
+    def points(x, y):
         X, Z = 2.0 * x - 1.0, 1.0 - 2.0 * y
         r2 = X * X + Z * Z
+        inside = r2 < 1.0
         c = np.sqrt(np.maximum(1.0 - r2, 0.0))
-        d = np.stack([2 * c * X, 2 * r2 - 1, 2 * c * Z], axis=-1).reshape(-1, 3)
-        return np.where(r2 < 1.0, 16.0 * env.pdf(d).reshape(x.shape), 0.0)
+        d = np.where(inside[:, None], np.stack([2 * c * X, 2 * r2 - 1, 2 * c * Z], axis=-1), [0.0, 1.0, 0.0])
+        return d, np.where(inside, 16.0, 0.0)
 
-    return observed, expected_counts_2d(density, edges, edges, N, order=32)
+    def sampler(u):
+        s = env.sample(u)
+        return s.wi, s.valid
+
+    return ChiSquareTest(Mapped(((0, 1), (0, 1)), coordinates, points), sampler, env.pdf, n_cells, N, seed=seed,
+                         order=32)
 
 
 CHI2_CASES = {
@@ -115,14 +112,11 @@ CHI2_CASES = {
     "mirror_ball_hot_pixel": lambda: _ball_fit(
         EnvironmentMap(hot_pixel_map(4, 11, h=16, w=16), projection="MIRROR_BALL"), 11),
 }
-ALPHA = sidak_alpha(0.01, len(CHI2_CASES))
 
 
 @pytest.mark.parametrize("name", list(CHI2_CASES))
 def test_chi2_environment_sampler(name):
-    observed, expected = CHI2_CASES[name]()
-    p_value = chi2_test(observed, expected)
-    assert p_value >= ALPHA, f"{name}: p = {p_value:.3g} < alpha = {ALPHA:.3g}"
+    CHI2_CASES[name]().check(n_tests=len(CHI2_CASES))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -142,7 +136,8 @@ MAPS = {
 @pytest.mark.parametrize("name", list(MAPS))
 def test_pdf_and_eval_agree_with_sample(name):
     env = EnvironmentMap(**MAPS[name])
-    wi, Le, pdf, valid = env.sample(_u(20, 20_000))
+    s = env.sample(_u(20, 20_000))
+    wi, Le, pdf, valid = s.wi, s.Le, s.pdf, s.valid
     assert np.allclose(np.linalg.norm(wi, axis=1), 1.0, rtol=0, atol=1e-12)
     assert np.all(np.isfinite(pdf)) and np.all((pdf > 0) == valid)
     np.testing.assert_allclose(env.pdf(wi[valid]), pdf[valid], rtol=1e-12, atol=0)
@@ -156,7 +151,8 @@ def test_light_sampling_estimates_are_unbiased(name):
     g = max(z, 0) gives pi."""
     env = EnvironmentMap(**MAPS[name])
     n = 400_000
-    wi, _, pdf, valid = env.sample(_u(21, n))
+    s = env.sample(_u(21, n))
+    wi, pdf, valid = s.wi, s.pdf, s.valid
     inv = np.divide(1.0, pdf, out=np.zeros(n), where=valid)
     for g, exact in ((np.ones(n), 4.0 * np.pi), (np.maximum(wi[:, 2], 0.0), np.pi)):
         x = g * inv
@@ -169,8 +165,8 @@ def test_light_sampling_weight_is_constant_inside_a_hot_pixel(row):
     times its exact solid angle (2 pi / W)(cos theta_r - cos theta_r+1) for every sample,
     even in the pole rows where sin theta varies most across the pixel."""
     env = EnvironmentMap(hot_pixel_map(row, 7, hot=5.0, background=0.0))
-    wi, Le, pdf, _ = env.sample(_u(22, 50_000))
-    weight = Le / pdf[:, None]
+    s = env.sample(_u(22, 50_000))
+    wi, weight = s.wi, s.Le / s.pdf[:, None]
     solid_angle = 2.0 * np.pi / W * (np.cos(row * np.pi / H) - np.cos((row + 1) * np.pi / H))
     np.testing.assert_allclose(weight, np.broadcast_to([5.0, 2.5, 1.25], weight.shape) * solid_angle, rtol=1e-9)
     theta = np.arccos(np.clip(wi[:, 2], -1, 1))
@@ -181,9 +177,9 @@ def test_sun_sky_table_balances_the_light_sampling_weight():
     """Luminance x solid angle tables make L_lum / pdf the same for every pixel (up to the
     float32 table): the sampler's ideal for a 1e5 : 1 sun."""
     env = EnvironmentMap(sun_sky_map())
-    wi, Le, pdf, _ = env.sample(_u(23, 20_000))
-    lum = Le @ np.array([0.2126729, 0.7151522, 0.0721750])
-    ratio = lum / pdf
+    s = env.sample(_u(23, 20_000))
+    lum = s.Le @ np.array([0.2126729, 0.7151522, 0.0721750])
+    ratio = lum / s.pdf
     assert ratio.max() / ratio.min() < 1 + 1e-6
 
 
@@ -216,7 +212,7 @@ def test_mis_compensation_keeps_only_what_stands_out():
     img[4, 10] = 1e3
     env = EnvironmentMap(img, compensate=True)
     assert env.compensated
-    wi, _, pdf, _ = env.sample(_u(24, 1000))
+    pdf = env.sample(_u(24, 1000)).pdf
     np.testing.assert_allclose(pdf, pdf[0])  # all in the sun pixel
     sky = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
     assert np.all(env.pdf(sky) == 0) and np.all(EnvironmentMap(img).pdf(sky) > 0)

@@ -218,24 +218,23 @@ def test_filter_glossy_blurs_mirrors_after_rough_bounces_only():
     """Cycles' Filter Glossy: a mirror seen by camera rays (no rough bounce yet) is untouched;
     after a bounce of pdf p the closure's GGX alpha is at least sqrt(1 - p / k) / 2."""
     from ember.engine.bsdf.closure import Closure
-    from ember.engine.integrators.path import PathTracer, _Bounces
+    from ember.engine.integrators.path_options import ClosureOptions
+    from ember.engine.integrators.path_state import Bounces
     from ember.engine.scene import LOBE_MICROFACET
 
     mats = Materials.make([dict(lobes=[dict(kind=LOBE_MICROFACET, roughness=0.0, color=(1.0, 1.0, 1.0))])])
     n = 3
     up = np.tile([0.0, 0.0, 1.0], (n, 1))
-    tracer = object.__new__(PathTracer)
-    tracer.filter_glossy = 2.0
-    b = _Bounces.start(n, 64, stop=False, counts=False, ray=False, min_pdf=True)
+    b = Bounces.start(n, 64, min_pdf=True)
     b.min_pdf = np.array([np.inf, 0.5, 4.0])
-    min_alpha = tracer._blur(b)
+    min_alpha = ClosureOptions(True, True, filter_glossy=2.0).blur(b)
     np.testing.assert_allclose(min_alpha, [0.0, 0.5 * np.sqrt(0.75), 0.0])
     scene = furnace_box().replace(materials=mats)
     c = Closure(scene, np.zeros(n, np.int32), up, up, up, np.zeros(n, np.int64), np.full((n, 3), 1 / 3), min_alpha=min_alpha)
     assert c.pair_delta.tolist() == [True, False, True]
-    np.testing.assert_allclose(c.alpha[1], 0.5 * np.sqrt(0.75))
-    tracer.filter_glossy = 0.0
-    assert tracer._blur(b) is None
+    (glossy,) = c.groups  # the microfacet lobe's pairs
+    np.testing.assert_allclose(glossy.p.alpha[1], 0.5 * np.sqrt(0.75))
+    assert ClosureOptions(True, True, filter_glossy=0.0).blur(b) is None
 
 
 def test_holdout_is_black_and_transparent_camera_hidden_objects_are_not_seen():

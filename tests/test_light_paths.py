@@ -19,7 +19,7 @@ SCENES = ["lp_diffuse", "lp_glossy", "lp_transmission", "lp_caustics", "dof_roun
           "vis_transmission", "vis_lights", "vis_world"]
 SAMPLES = 512
 # The lights scene has pixels lit by small, bright lights whose variance estimate is unreliable
-# below ~1000 spp (tests/test_reference.py measured 99.73-99.79 % accepted at 512 spp).
+# below ~1000 spp (tests/test_reference.py; bench/results/full/code_choices.md).
 SAMPLES_OF = {"vis_lights": 1024}
 
 

@@ -20,8 +20,8 @@ def _light(soft):
 
 def _irradiance_by_light_sampling(lights, p, n, rng):
     p = np.broadcast_to(p, (N, 3)).copy()
-    wi, Le, pdf, _, _ = shapes.sample_analytic(LIGHT_POINT, lights, np.zeros(N, int), p, rng.random((N, 2)))
-    f = np.divide(Le[:, 0] * np.maximum(wi @ n, 0.0), pdf, out=np.zeros(N), where=pdf > 0)
+    s = shapes.sample_analytic(LIGHT_POINT, lights, np.zeros(N, int), p, rng.random((N, 2)))
+    f = np.divide(s.Le[:, 0] * np.maximum(s.wi @ n, 0.0), s.pdf, out=np.zeros(N), where=s.pdf > 0)
     return f.mean(), f.std() / np.sqrt(N)
 
 
@@ -29,9 +29,9 @@ def _irradiance_by_cosine_rays(lights, p, n, rng):
     """E = pi E_cos[L]: directions from the cosine-weighted hemisphere around n, lights hit by rays."""
     t, b = sampling.frame_from_z(n[None])
     d = sampling.to_world(sampling.sample_cosine_hemisphere(rng.random((N, 2))), t, b, n[None])
-    hit, gain, pdf_dir = shapes.hit_analytic(LIGHT_POINT, lights, 0, np.broadcast_to(p, (N, 3)), d, np.full(N, np.inf))
-    f = np.pi * np.where(hit, gain * lights.Le[0, 0], 0.0)
-    return f.mean(), f.std() / np.sqrt(N), hit, pdf_dir, d
+    h = shapes.hit_analytic(LIGHT_POINT, lights, 0, np.broadcast_to(p, (N, 3)), d, np.full(N, np.inf))
+    f = np.pi * np.where(h.hit, h.gain * lights.Le[0, 0], 0.0)
+    return f.mean(), f.std() / np.sqrt(N), h.hit, h.pdf, d
 
 
 def _exact_on_axis(soft, dist):
@@ -81,7 +81,8 @@ def test_soft_light_sampled_points_lie_on_the_disk_facing_the_point():
     rng = np.random.default_rng(5)
     lights = _light(True)
     p = np.array([[0.3, -2.0, 0.5]] * 1000)
-    _, _, pdf, target, _ = shapes.sample_analytic(LIGHT_POINT, lights, np.zeros(1000, int), p, rng.random((1000, 2)))
+    s = shapes.sample_analytic(LIGHT_POINT, lights, np.zeros(1000, int), p, rng.random((1000, 2)))
+    pdf, target = s.pdf, s.target
     n_disk = p[0] / np.linalg.norm(p[0])
     assert np.abs(target @ n_disk).max() < 1e-12  # in the plane through the centre facing p
     assert np.linalg.norm(target, axis=1).max() <= R * (1 + 1e-12)

@@ -14,7 +14,7 @@ from ember.engine.scene import (LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT,
 from ember.engine.session import RenderSession
 
 from core_scenes import many_lights, quads_mesh
-from stats import chi2_test, sidak_alpha, z_test_p_values
+from stats import ChiSquareTest, Discrete, sidak_alpha, z_test_p_values
 
 ALPHA = 0.01
 POINTS = np.array([[0.3, 0.2, 0.0], [-6.0, 4.0, 0.0], [7.5, -7.5, 2.0]])
@@ -94,17 +94,19 @@ def test_pmf_sums_to_one_at_every_point(ls):
 
 
 def test_chosen_lights_follow_the_pmf(ls):
-    """Chi-square of the chosen light indices against N x pmf at three shading points."""
+    """Chi-square of the chosen light indices against the pmf at three shading points."""
     n = 200_000
-    rng = np.random.default_rng(11)
-    for p in POINTS:
+    for i, p in enumerate(POINTS):
         pts = np.tile(p, (n, 1))
-        index, pmf = ls._choose(pts, rng.random(n))
-        expected = n * ls.pmf(np.arange(ls.count), np.tile(p, (ls.count, 1)))
-        observed = np.bincount(index, minlength=ls.count)
-        assert chi2_test(observed, expected) > sidak_alpha(ALPHA, len(POINTS))
-        # What the sampler reports is the pmf of what it chose, at the same point.
-        np.testing.assert_allclose(pmf, ls.pmf(index, pts), rtol=1e-12)
+
+        def sampler(u):
+            index, pmf = ls._choose(pts, u[:, 0])
+            # What the sampler reports is the pmf of what it chose, at the same point.
+            np.testing.assert_allclose(pmf, ls.pmf(index, pts), rtol=1e-12)
+            return index
+
+        ChiSquareTest(Discrete(ls.count), sampler, lambda k: ls.pmf(k, np.tile(p, (len(k), 1))), n_samples=n,
+                      seed=[11, i], sample_dim=1, name=f"point {p}").check(ALPHA, n_tests=len(POINTS))
 
 
 def test_sample_pdf_is_what_a_hit_reports(ls):
@@ -123,10 +125,10 @@ def test_sample_pdf_is_what_a_hit_reports(ls):
     np.testing.assert_allclose(ls.pdf_triangle_hit(s.target_prim[tri], p[tri], t, cos), s.pdf[tri], rtol=1e-6)
     checked = 0
     for i in ls.hittable.tolist():
-        hit, _, pdf_dir = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(n, np.inf))
-        mine = np.flatnonzero(s.valid & hit & (s.target_prim < 0) & s.finite)
+        h = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(n, np.inf))
+        mine = np.flatnonzero(s.valid & h.hit & (s.target_prim < 0) & s.finite)
         mine = mine[np.linalg.norm(s.target[mine] - ls.lights.position[i], axis=1) < 1.0]
-        np.testing.assert_allclose(ls.pmf(np.full(len(mine), i), p[mine]) * pdf_dir[mine], s.pdf[mine], rtol=1e-6)
+        np.testing.assert_allclose(ls.pmf(np.full(len(mine), i), p[mine]) * h.pdf[mine], s.pdf[mine], rtol=1e-6)
         checked += len(mine)
     assert checked > 100
     # emission_along weighs what the rays find with that same pmf, at the rays' origins.
@@ -134,10 +136,10 @@ def test_sample_pdf_is_what_a_hit_reports(ls):
     found = ls.emission_along(p, s.wi, np.full(n, np.inf), pdf_bsdf, np.ones(n, bool), np.zeros(n, bool))
     expect = np.zeros((n, 3))
     for i in ls.hittable.tolist():
-        hit, gain, pdf_dir = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(n, np.inf))
-        r = np.flatnonzero(hit)
-        w = pdf_bsdf[r] / (pdf_bsdf[r] + ls.pmf(np.full(len(r), i), p[r]) * pdf_dir[r])
-        expect[r] += (gain[r] * w)[:, None] * ls.lights.Le[i]
+        h = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(n, np.inf))
+        r = np.flatnonzero(h.hit)
+        w = pdf_bsdf[r] / (pdf_bsdf[r] + ls.pmf(np.full(len(r), i), p[r]) * h.pdf[r])
+        expect[r] += (h.gain[r] * w)[:, None] * ls.lights.Le[i]
     assert np.count_nonzero(expect[:, 0]) > 100
     np.testing.assert_allclose(found, expect, rtol=1e-9)
 
@@ -188,9 +190,9 @@ def test_tree_and_power_selection_agree(kind, radius, monkeypatch):
 def test_tree_has_less_error_than_power_selection(monkeypatch):
     """1000 point lights of powers over three decades spread over a floor: at equal samples
     the tree's relMSE against a reference (the tree at 32x the samples) is under half of power
-    selection's (measured 0.2-0.5 over seeds; per-pixel variance estimates are no judge here:
-    power selection rarely picks the near, bright light, so at few samples its estimate is
-    far too low)."""
+    selection's (bench/results/many_lights/report.md; per-pixel variance estimates are no
+    judge here: power selection rarely picks the near, bright light, so at few samples its
+    estimate is far too low)."""
     from ember.engine.metrics import rel_mse
     ref, _ = _render(many_lights(1000, "point", width=16, height=16, samples=1024, seed=99, threads=1), True,
                      monkeypatch)

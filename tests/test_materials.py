@@ -15,7 +15,7 @@ from ember.engine.scene import (EXT_CLIP, EXT_EXTEND, EXT_MIRROR, EXT_REPEAT, FR
 from ember.engine.session import RenderSession
 
 from core_scenes import furnace_box, perspective, quads_mesh, settings, uv_sphere
-from stats import chi2_test, expected_counts_2d, sidak_alpha, spherical_coordinates
+from stats import ChiSquareTest, Sphere, sidak_alpha
 
 ALPHA = 0.01
 RNG = np.random.default_rng(20261122)
@@ -144,28 +144,21 @@ MIXED = [  # Principled-like: dielectric specular over diffuse, plus rough glass
 @pytest.mark.parametrize("theta_deg,inside", [(20, False), (70, False), (40, True)])
 def test_mixture_sampling_matches_mixture_pdf(theta_deg, inside):
     """Chi-square of the closure's sampled directions over the whole sphere against the
-    mixture pdf its eval() reports (Sidak over the three configurations)."""
+    mixture pdf its eval() reports (Sidak over the three configurations). Samples a lobe drops
+    (its pdf is 0 there) are rejected: the pdf integrates to the share kept."""
     th = np.radians(theta_deg)
     wo = [np.sin(th), 0.0, -np.cos(th) if inside else np.cos(th)]
-    n = 200_000
-    c = _closure(MIXED, wo, n)
-    u = RNG.random((n, 2))
-    s = c.sample(u, RNG.random(n))
-    assert not s.delta.any() and np.all(np.isfinite(s.weight))
-    cos_t, phi = spherical_coordinates(s.wi[s.valid])
-    ce, pe = np.linspace(-1, 1, 41), np.linspace(0, 2 * np.pi, 41)
-    observed = np.histogram2d(cos_t, phi, bins=[ce, pe])[0]
-    m = 41 * 41 * 16
-    grid = _closure(MIXED, wo, m)
 
-    def density(ct, ph):
-        st_ = np.sqrt(np.maximum(0, 1 - ct.ravel() ** 2))
-        d = np.stack([st_ * np.cos(ph.ravel()), st_ * np.sin(ph.ravel()), ct.ravel()], 1)
-        return grid.eval(d, np.arange(len(d)))[1].reshape(ct.shape)
+    def sampler(u):
+        s = _closure(MIXED, wo, len(u)).sample(u[:, :2], u[:, 2])
+        assert not s.delta.any() and np.all(np.isfinite(s.weight))
+        return s.wi, s.valid
 
-    # Samples a lobe drops (its pdf is 0 there) are in neither the histogram nor the pdf.
-    expected = expected_counts_2d(density, ce, pe, n)
-    assert chi2_test(observed, expected) > sidak_alpha(ALPHA, 3)
+    def pdf(d):
+        return _closure(MIXED, wo, len(d)).eval(d, np.arange(len(d)))[1]
+
+    ChiSquareTest(Sphere(), sampler, pdf, 40, 200_000, seed=[theta_deg, inside], sample_dim=3,
+                  refine=True).check(ALPHA, n_tests=3)
 
 
 def test_sample_weight_and_pdf_are_those_of_eval():

@@ -78,8 +78,8 @@ def test_pack_keeps_each_photon_together_in_morton_order():
     n = -_hemisphere(rng, m)
     order = pm.morton_order(p)
     assert np.array_equal(np.sort(order), np.arange(m))
-    # neighbours in memory are neighbours in space: the mean step is ~0.064 of a random pair's
-    # (0.24 when sorted on a 64^2 grid in x, y only)
+    # neighbours in memory are neighbours in space: the mean step is a small fraction of a
+    # random pair's (sorting on a 64^2 grid in x, y only would not pass)
     step = np.linalg.norm(np.diff(p[order], axis=0), axis=1).mean()
     assert step < 0.1 * np.linalg.norm(p[1:] - p[:-1], axis=1).mean()
     arrays = PhotonMap.pack(p, wi, flux, n)

@@ -6,22 +6,20 @@ expectation for an unbiased render is known from the variances.
 
 1024 samples per pixel: pixels at the image border and next to the directly seen disk light
 get their value from rare filter-tail samples; below ~1000 samples their estimated variance
-is unreliable and the per-pixel normal approximation fails (measured: 99.3 % accepted at 128
-spp on the Cornell box, 100 % at 1024; 99.73-99.79 % at 512 spp on the lights scene, 99.88 %
-at 1024 over three seeds).
+is unreliable and the per-pixel normal approximation fails (the acceptance rates per sample
+count are in bench/results/full/code_choices.md).
 
 Honest variances under Sobol: the default sampling pattern stratifies each pixel's samples, so
-their sample variance overstates the error of the pixel mean (by 2.4-25x in variance on these
-scenes: measured between-seed / within-pixel ratio 0.04-0.42). The samples are therefore split
-over SEEDS independent renders; the spread of their means is an honest (if 3-dof) per-pixel
-variance, and summed over pixels - relMSE's expectation, image and region means - it has
-thousands of degrees of freedom. The per-pixel z-test keeps the within-pixel variance: a
-conservative screen for outlier pixels, not what gives the test its power. The pooled tests
-are: the image mean and the four quadrant means, each within a stated modelling tolerance
-(TOL_IMAGE, TOL_REGION: tessellation, float32 tables and Cycles' own approximations; measured
-Ember / Cycles ratios 0.9988-1.0015 for the image, quadrants within 0.5 %) plus the Sidak-
-corrected noise band; a 2 % scale error exceeds both on every scene (tests/mutations/run.py
-applies it)."""
+their sample variance overstates the error of the pixel mean, several times over in variance on
+these scenes (bench/results/full/code_choices.md). The samples are therefore split over SEEDS
+independent renders; the spread of their means is an honest (if 3-dof) per-pixel variance, and
+summed over pixels - relMSE's expectation, image and region means - it has thousands of degrees
+of freedom. The per-pixel z-test keeps the within-pixel variance: a conservative screen for
+outlier pixels, not what gives the test its power. The pooled tests are: the image mean and the
+four quadrant means, each within a stated modelling tolerance (TOL_IMAGE, TOL_REGION:
+tessellation, float32 tables and Cycles' own approximations, with the measured Ember / Cycles
+ratios well inside) plus the Sidak-corrected noise band; a 2 % scale error exceeds both on
+every scene (tests/mutations/run.py applies it)."""
 import os
 import pathlib
 import tempfile
@@ -127,7 +125,7 @@ def test_matches_cycles_reference(name, samples):
     accepted = z_test_images(mean, var, ref, ref_var, alpha=0.01)
     assert accepted >= 0.9975, f"{name}: only {accepted:.4%} of pixels agree with Cycles"
     # An unbiased render's expected relMSE is mean((var_ember + var_ref) / (ref^2 + eps)) with
-    # honest variances (measured 0.85-1.18x of it); a systematic difference (units, orientation,
+    # honest variances (renders land close to it); a systematic difference (units, orientation,
     # a missing light path) adds its square on top.
     expected = float(np.mean((honest + ref_var) / (ref**2 + EPS)))
     measured = rel_mse(mean, ref)

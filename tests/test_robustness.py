@@ -402,7 +402,7 @@ def _signal_and_wait(proc, sig, group):
 
 def _after_export(proc, seconds=2.5):
     """Wait until final.py's (flushed) 'exported in' line, then `seconds` more: worker
-    processes take ~1 s to start, so after 2.5 s they are sampling."""
+    processes start well within that, so after 2.5 s they are sampling."""
     for line in proc.stdout:
         if "exported in" in line:
             break
@@ -425,7 +425,7 @@ def test_signal_during_sampling_stops_fast_one_line_no_file_no_workers(bad_scene
     seconds, out, err = _signal_and_wait(proc, getattr(signal, sig), group)
     assert proc.returncode == code, err
     assert err.strip().splitlines() == ["Interrupted."], err  # no worker tracebacks either
-    assert seconds < 5.0  # measured ~0.4 s; generous for a loaded machine
+    assert seconds < 5.0  # generous: a quiet machine stops within a second
     assert not out_path.exists()
     assert _wait_gone(workers), "worker processes outlived the render"
     assert not [p for p in bad_scenes.iterdir() if p.name.startswith(".long.exr")]

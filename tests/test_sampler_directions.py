@@ -13,20 +13,18 @@ these can. Seeded; chi-square cases share a family-wise level of 0.01 (Sidak), z
 """
 import numpy as np
 import pytest
-from scipy import stats as st
 
-from ember.engine import sampling
 from ember.engine.accel import Accel
 from ember.engine.bsdf import closure as closure_mod
 from ember.engine.bsdf import fast_path
-from ember.engine.bsdf import dielectric, microfacet, phong
+from ember.engine.bsdf import phong
 from ember.engine.lights.light_set import LightSet
 from ember.engine.scene import (FRESNEL_NONE, LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LOBE_DIELECTRIC,
                                 LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_PHONG, MAT_DIFFUSE, MAT_EMISSION_ONLY,
                                 MAT_NODES, Lights, Materials, Mesh, Scene, World)
 
 from core_scenes import perspective, quads_mesh, settings
-from stats import chi2_test, expected_counts_2d, sidak_alpha
+from stats import ChiSquareTest, Cone, Sphere
 
 N = 200_000
 TILT = np.array([0.35, -0.5, 0.79])
@@ -41,34 +39,17 @@ def _frame(n):
     return t, np.cross(n, t), n
 
 
-def _sphere_coords(d, n):
-    """(cos theta, phi) of world directions d (M,3) in the frame around n."""
-    t, b, n = _frame(n)
-    phi = np.mod(np.arctan2(d @ b, d @ t), 2 * np.pi)
-    return np.clip(d @ n, -1.0, 1.0), phi
-
-
 def _direction(cos_t, phi, n):
     t, b, n = _frame(n)
     s = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
     return (s * np.cos(phi))[..., None] * t + (s * np.sin(phi))[..., None] * b + cos_t[..., None] * n
 
 
-COS_EDGES = np.linspace(-1.0, 1.0, 41)
-PHI_EDGES = np.linspace(0.0, 2 * np.pi, 41)
-
-
-def _fit(wi, n, density_of_directions, n_total):
-    """(observed, expected) over the sphere in (cos, phi) around n; density per solid angle."""
-    c, p = _sphere_coords(wi, n)
-    observed = np.histogram2d(c, p, bins=[COS_EDGES, PHI_EDGES])[0]
-
-    def density(c, p):
-        shape = c.shape
-        d = _direction(c.ravel(), p.ravel(), n)
-        return density_of_directions(d).reshape(shape)
-
-    return observed, expected_counts_2d(density, COS_EDGES, PHI_EDGES, n_total)
+def _fit(n, sampler, density, seed):
+    """Chi-square test over the sphere in 40 x 40 cells of (cos, phi) around n; density per
+    solid angle; u (N, 3) (direction, lobe choice)."""
+    return ChiSquareTest(Sphere(frame=np.stack(_frame(n))), sampler, density, 40, N, seed=seed, sample_dim=3,
+                         refine=True)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -100,27 +81,28 @@ def _lambert_density(n):
 
 
 def case_lambert_closure():
-    rng = np.random.default_rng(1)
-    ns = np.tile(TILT, (N, 1))
-    c = fast_path.LambertClosure(np.full((N, 3), 0.7), ns, ns.copy())
-    s = c.sample(rng.random((N, 2)), rng.random(N))
-    assert s.valid.all() and not s.delta.any()
-    np.testing.assert_allclose(s.pdf, np.maximum(s.wi @ TILT, 0) / np.pi, rtol=1e-9)  # its pdf is cos / pi
-    np.testing.assert_allclose(s.weight, 0.7)  # and its weight that of cosine sampling
-    return _fit(s.wi, TILT, _lambert_density(TILT), N)
+    def sampler(u):
+        ns = np.tile(TILT, (len(u), 1))
+        s = fast_path.LambertClosure(np.full((len(u), 3), 0.7), ns, ns.copy()).sample(u[:, :2], u[:, 2])
+        assert s.valid.all() and not s.delta.any()
+        np.testing.assert_allclose(s.pdf, np.maximum(s.wi @ TILT, 0) / np.pi, rtol=1e-9)  # its pdf is cos / pi
+        np.testing.assert_allclose(s.weight, 0.7)  # and its weight that of cosine sampling
+        return s.wi
+
+    return _fit(TILT, sampler, _lambert_density(TILT), 1)
 
 
 def _closure_case(lobes, wo_local, seed, inside=False, density=None):
-    c, wo, n = _closure(lobes, wo_local, inside=inside)
-    rng = np.random.default_rng(seed)
-    s = c.sample(rng.random((N, 2)), rng.random(N))
-    assert not s.delta.any() and np.all(np.isfinite(s.weight)) and np.all(np.isfinite(s.pdf))
-    if density is None:
-        grid, _, _ = _closure(lobes, wo_local, n=41 * 41 * 16, inside=inside)
+    def sampler(u):
+        c, _, _ = _closure(lobes, wo_local, n=len(u), inside=inside)
+        s = c.sample(u[:, :2], u[:, 2])
+        assert not s.delta.any() and np.all(np.isfinite(s.weight)) and np.all(np.isfinite(s.pdf))
+        return s.wi, s.valid
 
+    if density is None:
         def density(d):
-            return grid.eval(d, np.arange(len(d)))[1]
-    return _fit(s.wi[s.valid], n, density, N)
+            return _closure(lobes, wo_local, n=len(d), inside=inside)[0].eval(d, np.arange(len(d)))[1]
+    return _fit(_closure(lobes, wo_local, n=1, inside=inside)[2], sampler, density, seed)
 
 
 def _diffuse_density():
@@ -148,14 +130,11 @@ CLOSURE_CASES = {
     "closure_phong_n20": lambda: _closure_case(
         [dict(kind=LOBE_PHONG, color=(0.3, 0.3, 0.3), tint=(0.5, 0.5, 0.5), exponent=20.0)], [0.5, -0.2, 0.7], 7),
 }
-CLOSURE_ALPHA = sidak_alpha(0.01, len(CLOSURE_CASES))
 
 
 @pytest.mark.parametrize("name", list(CLOSURE_CASES))
 def test_closure_samplers_chi2(name):
-    observed, expected = CLOSURE_CASES[name]()
-    p = chi2_test(observed, expected)
-    assert p >= CLOSURE_ALPHA, f"{name}: p = {p:.3g}"
+    CLOSURE_CASES[name]().check(n_tests=len(CLOSURE_CASES))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -254,39 +233,42 @@ def _hit_density(ls, i):
 
     def density(d):
         o = np.broadcast_to(P0, d.shape)
-        hit, _, pdf_dir = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, o, d, np.full(len(d), np.inf))
-        return np.where(hit, pdf_dir, 0.0) * ls.pmf(np.array([i]))[0]
+        h = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, o, d, np.full(len(d), np.inf))
+        return np.where(h.hit, h.pdf, 0.0) * ls.pmf(np.array([i]))[0]
     return density
 
 
+def _cone_around(lights, i, dist):
+    """1 - cos of the half-angle of a cone from P0 around the direction to light i's centre
+    (at distance dist) that holds the light: the silhouette itself for a sphere and for a soft
+    light (a disk facing P0), so that it lies on the grid's edge; for a rect or a disk, the
+    cone of a ball around it, 5 % wider."""
+    kind, (hx, hy), r = int(lights.kind[i]), lights.size[i], lights.radius[i]
+    if kind in (LIGHT_RECT, LIGHT_DISK):
+        sin2, widen = (np.hypot(hx, hy) if kind == LIGHT_RECT else max(hx, hy)) ** 2 / dist**2, 1.05
+    else:
+        sin2, widen = r * r / (dist**2 + r * r if lights.soft[i] else dist**2), 1.0
+    return widen * sin2 / (1.0 + np.sqrt(1.0 - sin2))
+
+
 def _light_cone_fit(ls, i, seed, cells=24):
-    """Chi-square data of NEE directions toward light i, in coordinates around the direction to
+    """Chi-square test of NEE directions toward light i, in coordinates around the direction to
     its centre: s = (1 - cos) / (1 - cos_max) over [0, 1] and the azimuth, so the light fills
-    the grid. Only samples of light i count; the expected counts use the total N."""
-    rng = np.random.default_rng(seed)
-    p = np.tile(P0, (N, 1))
-    s = ls.sample(p, rng.random(N), rng.random((N, 2)))
-    axis = np.asarray(ls.lights.position[i]) - P0
-    axis /= np.linalg.norm(axis)
+    the grid. The samples of other lights are rejected: the density is light i's pmf x its pdf."""
     from ember.engine.lights import shapes
-    hit, _, _ = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(N, np.inf))
-    mine = s.valid & hit  # the samples of light i (the lights do not overlap as seen from P0)
-    assert (s.valid & ~hit & ((s.wi @ axis) > 0.99)).sum() == 0
-    cos = s.wi[mine] @ axis
-    one_minus_max = max(1.0 - cos.min(), 1e-9) * 1.05
-    t, b, _ = _frame(axis)
-    phi = np.mod(np.arctan2(s.wi[mine] @ b, s.wi[mine] @ t), 2 * np.pi)
-    s_edges = np.linspace(0.0, 1.0, cells + 1)
-    p_edges = np.linspace(0.0, 2 * np.pi, cells + 1)
-    observed = np.histogram2d((1.0 - cos) / one_minus_max, phi, bins=[s_edges, p_edges])[0]
-    dens = _hit_density(ls, i)
+    axis = np.asarray(ls.lights.position[i]) - P0
+    dist = np.linalg.norm(axis)
+    axis /= dist
 
-    def density(sv, pv):
-        c = 1.0 - sv.ravel() * one_minus_max
-        d = _direction(c, pv.ravel(), axis)
-        return dens(d).reshape(sv.shape) * one_minus_max  # d omega = (1 - cos_max) ds dphi
+    def sampler(u):
+        p = np.tile(P0, (len(u), 1))
+        s = ls.sample(p, u[:, 0], u[:, 1:])
+        hit = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(len(u), np.inf)).hit
+        assert (s.valid & ~hit & ((s.wi @ axis) > 0.99)).sum() == 0
+        return s.wi, s.valid & hit  # the samples of light i (the lights do not overlap as seen from P0)
 
-    return observed, expected_counts_2d(density, s_edges, p_edges, N, order=32)  # edges cut cells
+    return ChiSquareTest(Cone(_cone_around(ls.lights, i, dist), axis=axis), sampler, _hit_density(ls, i), cells, N,
+                         seed=seed, sample_dim=3, refine=True)  # the silhouettes of rects and disks cut cells
 
 
 def _sun_fit(seed, half_angle=0.2, cells=24):
@@ -296,22 +278,17 @@ def _sun_fit(seed, half_angle=0.2, cells=24):
     z = np.array([0.3, -0.2, 1.0]) / np.linalg.norm([0.3, -0.2, 1.0])
     sun = dict(kind=2, frame=_down(z), sun_half_angle=half_angle, Le=(2.0, 2.0, 2.0))
     ls = _light_set(Lights.make([sun]))
-    rng = np.random.default_rng(seed)
-    s = ls.sample(np.tile(P0, (N, 1)), rng.random(N), rng.random((N, 2)))
-    assert s.valid.all() and not s.finite.any()
-    one_minus_max = 1.0 - np.cos(half_angle)
-    t, b, _ = _frame(z)
-    c = s.wi @ z
-    phi = np.mod(np.arctan2(s.wi @ b, s.wi @ t), 2 * np.pi)
-    s_edges, p_edges = np.linspace(0.0, 1.0, cells + 1), np.linspace(0.0, 2 * np.pi, cells + 1)
-    observed = np.histogram2d((1.0 - c) / one_minus_max, phi, bins=[s_edges, p_edges])[0]
 
-    def density(sv, pv):
-        d = _direction(1.0 - sv.ravel() * one_minus_max, pv.ravel(), z)
-        hit, _, pdf_dir = shapes.sun_hit(ls.lights, 0, d)
-        return (np.where(hit, pdf_dir, 0.0) * one_minus_max).reshape(sv.shape)
+    def sampler(u):
+        s = ls.sample(np.tile(P0, (len(u), 1)), u[:, 0], u[:, 1:])
+        assert s.valid.all() and not s.finite.any()
+        return s.wi
 
-    return observed, expected_counts_2d(density, s_edges, p_edges, N)
+    def density(d):
+        h = shapes.sun_hit(ls.lights, 0, d)
+        return np.where(h.hit, h.pdf, 0.0)
+
+    return ChiSquareTest(Cone(1.0 - np.cos(half_angle), axis=z), sampler, density, cells, N, seed=seed, sample_dim=3)
 
 
 LIGHT_CASES = {
@@ -325,14 +302,11 @@ LIGHT_CASES = {
     "rect_among_three": lambda: _light_cone_fit(_light_set(Lights.make([DISK, RECT, SPHERE])), 1, 26),
     "sphere_among_three": lambda: _light_cone_fit(_light_set(Lights.make([DISK, RECT, SPHERE])), 2, 27),
 }
-LIGHT_ALPHA = sidak_alpha(0.01, len(LIGHT_CASES))
 
 
 @pytest.mark.parametrize("name", list(LIGHT_CASES))
 def test_light_sampler_directions_chi2(name):
-    observed, expected = LIGHT_CASES[name]()
-    p = chi2_test(observed, expected)
-    assert p >= LIGHT_ALPHA, f"{name}: p = {p:.3g}"
+    LIGHT_CASES[name]().check(n_tests=len(LIGHT_CASES))
 
 
 def _area_irradiance(center, frame, half, disk, Le, k=200):
@@ -419,7 +393,7 @@ def test_selection_pmf_is_proportional_to_power():
         rows = np.flatnonzero(s.valid & (np.argmax(np.stack([s.wi @ (np.asarray(ls.lights.position[j]) - P0)
                                                              / np.linalg.norm(np.asarray(ls.lights.position[j]) - P0)
                                                              for j in range(3)]), axis=0) == i))
-        hit, _, pdf_dir = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, np.tile(P0, (len(rows), 1)),
-                                              s.wi[rows], np.full(len(rows), np.inf))
-        assert hit.all()
-        np.testing.assert_allclose(s.pdf[rows], pmf[i] * pdf_dir, rtol=1e-6)
+        h = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, np.tile(P0, (len(rows), 1)),
+                                s.wi[rows], np.full(len(rows), np.inf))
+        assert h.hit.all()
+        np.testing.assert_allclose(s.pdf[rows], pmf[i] * h.pdf, rtol=1e-6)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from ember.engine import sampling as s
-from stats import (chi2_test, expected_counts_1d, expected_counts_2d, sidak_alpha,
-                   spherical_coordinates, z_test_images)
+from stats import (Box, ChiSquareTest, Cone, Discrete, Disk, Hemisphere, Interval, Mapped, Sphere, integrate,
+                   sidak_alpha, z_test_images)
 
 N_SAMPLES = 400_000
 TWO_PI = 2.0 * np.pi
@@ -19,85 +19,75 @@ def _u2(seed, n=N_SAMPLES):
     return np.random.default_rng(seed).random((n, 2))
 
 
-def _histogram_2d(x, y, x_edges, y_edges):
-    """Counts on the grid; every sample must lie inside it (a sample outside is a failure)."""
-    tol = 1e-9
-    assert np.all((x >= x_edges[0] - tol) & (x <= x_edges[-1] + tol)), "x outside the domain"
-    assert np.all((y >= y_edges[0] - tol) & (y <= y_edges[-1] + tol)), "y outside the domain"
-    x = np.clip(x, x_edges[0], x_edges[-1])
-    y = np.clip(y, y_edges[0], y_edges[-1])
-    return np.histogram2d(x, y, bins=[x_edges, y_edges])[0]
-
-
-def _fit(x, y, x_edges, y_edges, density):
-    """(observed, expected) counts for samples (x, y) against density(x, y) over d x d y."""
-    observed = _histogram_2d(x, y, x_edges, y_edges)
-    return observed, expected_counts_2d(density, x_edges, y_edges, x.size)
-
-
 def _reference_one_minus_cos(sin2):
     """1 - sqrt(1 - sin2) by a formula independent of the one under test."""
     with np.errstate(divide="ignore"):  # sin2 = 1: log1p(-1) = -inf, and the result is 1
         return -np.expm1(0.5 * np.log1p(-np.asarray(sin2, dtype=np.float64)))
 
 
-PHI_EDGES = np.linspace(0.0, TWO_PI, 81)
-UNIT_EDGES = np.linspace(0.0, 1.0, 41)
+def _constant(value):
+    return lambda p: np.full(len(p), float(value))
 
 
 # ----------------------------------------------------------------------------------------------
-# Chi-square cases: each returns (observed, expected) for a fixed seed
+# Chi-square cases: each a ChiSquareTest with a fixed seed; directions on 40 x 80 cells of
+# (cos theta, phi), planar samplers on 40 cells per unit axis.
 
 def case_cosine_hemisphere():
-    cos_theta, phi = spherical_coordinates(s.sample_cosine_hemisphere(_u2(1)))
-    return _fit(cos_theta, phi, UNIT_EDGES, PHI_EDGES, lambda c, p: s.pdf_cosine_hemisphere(c))
+    return ChiSquareTest(Hemisphere(), s.sample_cosine_hemisphere, lambda d: s.pdf_cosine_hemisphere(d[:, 2]),
+                         (40, 80), N_SAMPLES, seed=1)
 
 
 def case_uniform_sphere():
-    cos_theta, phi = spherical_coordinates(s.sample_uniform_sphere(_u2(2)))
-    return _fit(cos_theta, phi, np.linspace(-1.0, 1.0, 41), PHI_EDGES,
-                lambda c, p: np.full(c.shape, s.pdf_uniform_sphere()))
+    return ChiSquareTest(Sphere(), s.sample_uniform_sphere, _constant(s.pdf_uniform_sphere()), (40, 80),
+                         N_SAMPLES, seed=2)
 
 
 def case_uniform_hemisphere():
-    cos_theta, phi = spherical_coordinates(s.sample_uniform_hemisphere(_u2(3)))
-    return _fit(cos_theta, phi, UNIT_EDGES, PHI_EDGES, lambda c, p: s.pdf_uniform_hemisphere(c))
+    return ChiSquareTest(Hemisphere(), s.sample_uniform_hemisphere, lambda d: s.pdf_uniform_hemisphere(d[:, 2]),
+                         (40, 80), N_SAMPLES, seed=3)
 
 
 def case_triangle():
-    # (b0, b1 / (1 - b0)) maps the triangle onto the unit square; a uniform triangle has
-    # density 2 (1 - b0) there, smooth, so no cell straddles the hypotenuse.
-    b = s.sample_uniform_triangle(_u2(4))
-    assert np.all(b >= 0.0) and np.allclose(b.sum(axis=1), 1.0, rtol=0, atol=1e-15)
-    t = np.divide(b[:, 1], 1.0 - b[:, 0], out=np.zeros(len(b)), where=b[:, 0] < 1.0)
-    return _fit(b[:, 0], t, UNIT_EDGES, UNIT_EDGES, lambda x, y: 2.0 * (1.0 - x))
+    # (b0, b1 / (1 - b0)) maps the triangle onto the unit square, db0 db1 = (1 - b0) dx dy: the
+    # density 2 (1 - b0) there is smooth, so no cell straddles the hypotenuse.
+    def sampler(u):
+        b = s.sample_uniform_triangle(u)
+        assert np.all(b >= 0.0) and np.allclose(b.sum(axis=1), 1.0, rtol=0, atol=1e-15)
+        return b
+
+    def coordinates(b):
+        return b[:, 0], np.divide(b[:, 1], 1.0 - b[:, 0], out=np.zeros(len(b)), where=b[:, 0] < 1.0)
+
+    def points(x, y):
+        return np.stack([x, (1.0 - x) * y, (1.0 - x) * (1.0 - y)], axis=-1), 1.0 - x
+
+    # The triangle b0, b1 >= 0, b0 + b1 <= 1 has area 1/2: density 2.
+    return ChiSquareTest(Mapped(((0, 1), (0, 1)), coordinates, points), sampler, _constant(2.0), 40,
+                         N_SAMPLES, seed=4)
 
 
 def _case_sphere_cone(sin2_theta_max, seed):
-    # Radial coordinate rescaled to r = (1 - cos theta) / (1 - cos theta_max) in [0, 1], so even
-    # a 1e-12 cone fills the grid; 1 - cos theta = sin^2 / (1 + cos) avoids cancelling.
-    d, one_minus_cos_max = s.sample_sphere_cone(_u2(seed), sin2_theta_max)
+    # Cone coordinates (1 - cos theta) / (1 - cos theta_max): even a 1e-12 cone fills the grid.
     reference = _reference_one_minus_cos(sin2_theta_max)
-    np.testing.assert_allclose(one_minus_cos_max, reference, rtol=1e-12)
-    r = (d[:, 0] ** 2 + d[:, 1] ** 2) / (1.0 + d[:, 2]) / reference
-    _, phi = spherical_coordinates(d)
-    pdf = s.pdf_sphere_cone(reference)  # density over (r, phi) = pdf * (1 - cos theta_max)
-    return _fit(r, phi, UNIT_EDGES, PHI_EDGES, lambda x, p: np.full(x.shape, pdf * reference))
+
+    def sampler(u):
+        d, one_minus_cos_max = s.sample_sphere_cone(u, sin2_theta_max)
+        np.testing.assert_allclose(one_minus_cos_max, reference, rtol=1e-12)
+        return d
+
+    return ChiSquareTest(Cone(reference), sampler, _constant(s.pdf_sphere_cone(reference)), (40, 80), N_SAMPLES,
+                         seed=seed)
 
 
 def case_concentric_disk():
-    p = s.sample_concentric_disk(_u2(9))
-    r2 = p[:, 0] ** 2 + p[:, 1] ** 2
-    phi = np.mod(np.arctan2(p[:, 1], p[:, 0]), TWO_PI)
-    # dA = r dr dphi = d(r^2) dphi / 2, so the area pdf 1/pi is 1/(2 pi) over (r^2, phi).
-    return _fit(r2, phi, UNIT_EDGES, PHI_EDGES,
-                lambda x, y: np.full(x.shape, 0.5 * s.pdf_concentric_disk()))
+    return ChiSquareTest(Disk((0.0, 0.0), (1.0, 0.0), (0.0, 1.0)), s.sample_concentric_disk,
+                         _constant(s.pdf_concentric_disk()), (40, 80), N_SAMPLES, seed=9)
 
 
 def case_rectangle():
-    p = s.sample_uniform_rectangle(_u2(10), 2.0, 0.5)
-    return _fit(p[:, 0], p[:, 1], np.linspace(-2.0, 2.0, 41), np.linspace(-0.5, 0.5, 21),
-                lambda x, y: np.full(x.shape, s.pdf_uniform_rectangle(2.0, 0.5)))
+    return ChiSquareTest(Box((-2.0, 2.0), (-0.5, 0.5)), lambda u: s.sample_uniform_rectangle(u, 2.0, 0.5),
+                         _constant(s.pdf_uniform_rectangle(2.0, 0.5)), (40, 20), N_SAMPLES, seed=10)
 
 
 def _random_table_1d():
@@ -113,48 +103,47 @@ def _reference_density_1d(f):
     return lambda x: table[np.clip((x * f.size).astype(int), 0, f.size - 1)]
 
 
-def _fit_distribution1d(f, seed, subdivide):
-    # Sub-cells never straddle a bin edge, so the reference density is constant on each.
-    x, _, _ = s.Distribution1D(f).sample_continuous(np.random.default_rng(seed).random(N_SAMPLES))
-    edges = np.linspace(0.0, 1.0, subdivide * f.size + 1)
-    return np.histogram(x, edges)[0], expected_counts_1d(_reference_density_1d(f), edges, N_SAMPLES)
+def _case_distribution1d(f, seed, subdivide):
+    # Cells never straddle a bin edge, so the reference density is constant on each.
+    return ChiSquareTest(Interval(0.0, 1.0), lambda u: s.Distribution1D(f).sample_continuous(u[:, 0])[0],
+                         _reference_density_1d(f), subdivide * f.size, N_SAMPLES, seed=seed, sample_dim=1)
 
 
 def case_distribution1d_continuous():
-    return _fit_distribution1d(_random_table_1d(), 12, 3)
+    return _case_distribution1d(_random_table_1d(), 12, 3)
 
 
 def case_distribution1d_discrete_and_remap():
-    # Joint histogram of (bin, remapped u): bins by pmf, the remapped u uniform and independent.
-    dist = s.Distribution1D(_random_table_1d())
-    index, _, u_remapped = dist.sample_discrete(np.random.default_rng(13).random(N_SAMPLES))
-    n_u = 10
-    observed = np.histogram2d(index, u_remapped, bins=[np.arange(dist.n + 1) - 0.5,
-                                                       np.linspace(0.0, 1.0, n_u + 1)])[0]
+    # Samples (bin, remapped u) on [0, n) x [0, 1): bins by pmf, the remapped u uniform and
+    # independent of the bin; n x 10 cells.
     f = _random_table_1d()
-    expected = np.repeat((f / f.sum())[:, None] * N_SAMPLES / n_u, n_u, axis=1)
-    return observed, expected
+    pmf = f / f.sum()
+
+    def sampler(u):
+        index, _, u_remapped = s.Distribution1D(f).sample_discrete(u[:, 0])
+        return np.stack([index, u_remapped], axis=1)
+
+    return ChiSquareTest(Box((0, f.size), (0, 1)), sampler, lambda p: pmf[p[:, 0].astype(int)], (f.size, 10),
+                         N_SAMPLES, seed=13, sample_dim=1)
 
 
 def case_distribution1d_single_hot_bin():
     f = np.zeros(64)
     f[17] = 3.0
-    return _fit_distribution1d(f, 14, 8)
+    return _case_distribution1d(f, 14, 8)
 
 
-def _fit_distribution2d(f, seed, subdivide):
+def _case_distribution2d(f, seed, subdivide):
     # Reference density f / mean(f) (uniform if f is 0), read independently of the code under test.
-    uv, _, _ = s.Distribution2D(f).sample(_u2(seed))
     height, width = f.shape
     table = f / f.mean() if f.sum() > 0.0 else np.ones_like(f)
 
-    def density(u, v):
-        col = np.clip((u * width).astype(int), 0, width - 1)
-        return table[np.clip((v * height).astype(int), 0, height - 1), col]
+    def density(uv):
+        col = np.clip((uv[:, 0] * width).astype(int), 0, width - 1)
+        return table[np.clip((uv[:, 1] * height).astype(int), 0, height - 1), col]
 
-    u_edges = np.linspace(0.0, 1.0, subdivide * width + 1)
-    v_edges = np.linspace(0.0, 1.0, subdivide * height + 1)
-    return _fit(uv[:, 0], uv[:, 1], u_edges, v_edges, density)
+    return ChiSquareTest(Box(), lambda u: s.Distribution2D(f).sample(u)[0], density,
+                         (subdivide * width, subdivide * height), N_SAMPLES, seed=seed)
 
 
 def _random_table_2d():
@@ -165,43 +154,41 @@ def _random_table_2d():
 
 
 def case_distribution2d_random_with_zero_rows_and_columns():
-    return _fit_distribution2d(_random_table_2d(), 16, 2)
+    return _case_distribution2d(_random_table_2d(), 16, 2)
 
 
 def case_distribution2d_hot_cell_on_dim_background():
     f = np.full((16, 32), 1.0)
     f[5, 9] = 1e5  # a sun over a sky: the dim cells still get their share
-    return _fit_distribution2d(f, 17, 1)
+    return _case_distribution2d(f, 17, 1)
 
 
 def case_distribution2d_single_hot_cell():
     f = np.zeros((16, 32))
     f[15, 31] = 2.0  # last row and column: the CDF ends must not leak
-    return _fit_distribution2d(f, 18, 4)
+    return _case_distribution2d(f, 18, 4)
 
 
 def case_distribution2d_1x1():
-    return _fit_distribution2d(np.array([[0.7]]), 19, 20)
+    return _case_distribution2d(np.array([[0.7]]), 19, 20)
 
 
 def case_distribution2d_all_zero():
-    return _fit_distribution2d(np.zeros((6, 9)), 20, 3)
+    return _case_distribution2d(np.zeros((6, 9)), 20, 3)
 
 
 def _normalised_pixel_filter(kind, width):
     radius = s.pixel_filter_radius(kind, width)
-    norm = expected_counts_1d(lambda x: s.pixel_filter_1d(kind, width, x),
-                              np.linspace(-radius, radius, 2001), 1.0).sum()
+    norm = integrate(Interval(-radius, radius), lambda x: s.pixel_filter_1d(kind, width, x), 2000).sum()
     return lambda x: s.pixel_filter_1d(kind, width, x) / norm
 
 
 def _case_pixel_filter(kind, width, seed):
     # Joint 2D fit against g(x) g(y): checks each axis and their independence.
     radius = s.pixel_filter_radius(kind, width)
-    offsets = s.sample_pixel_filter(kind, width, _u2(seed, 300_000))
     g = _normalised_pixel_filter(kind, width)
-    edges = np.linspace(-radius, radius, 32)
-    return _fit(offsets[:, 0], offsets[:, 1], edges, edges, lambda x, y: g(x) * g(y))
+    return ChiSquareTest(Box((-radius, radius), (-radius, radius)), lambda u: s.sample_pixel_filter(kind, width, u),
+                         lambda p: g(p[:, 0]) * g(p[:, 1]), 31, 300_000, seed=seed)
 
 
 CONE_SIN2 = (1e-12, 0.01, 0.5, 1.0)
@@ -229,14 +216,11 @@ CHI2_CASES = {
        for i, (kind, width) in enumerate((k, w) for k in s.PIXEL_FILTER_KINDS
                                          for w in FILTER_WIDTHS)},
 }
-ALPHA = sidak_alpha(0.01, len(CHI2_CASES))
 
 
 @pytest.mark.parametrize("name", list(CHI2_CASES))
 def test_chi2_goodness_of_fit(name):
-    observed, expected = CHI2_CASES[name]()
-    p_value = chi2_test(observed, expected)
-    assert p_value >= ALPHA, f"{name}: p = {p_value:.3g} < alpha = {ALPHA:.3g}"
+    CHI2_CASES[name]().check(n_tests=len(CHI2_CASES))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -552,19 +536,46 @@ def test_pixel_filter_is_monotone_in_u_and_inside_support(kind):
 # ----------------------------------------------------------------------------------------------
 # The statistics helpers themselves (tests/stats.py)
 
+def _draw_from(p, seed, pmf=None, n=20_000):
+    """ChiSquareTest of n indices drawn from the table p against the pmf `pmf` (default p)."""
+    cdf = np.cumsum(p) / np.sum(p)
+    claimed = p / p.sum() if pmf is None else pmf
+    return ChiSquareTest(Discrete(len(p)), lambda u: np.minimum(np.searchsorted(cdf, u[:, 0], side="right"), len(p) - 1),
+                         lambda k: claimed[k], n_samples=n, seed=seed, sample_dim=1)
+
+
 def test_chi2_test_is_calibrated_and_has_power():
     rng = np.random.default_rng(60)
     p = rng.random(300)
     p[:40] *= 1e-3  # low-expectation cells that must be pooled
     p /= p.sum()
-    p_null = np.array([chi2_test(rng.multinomial(20_000, p), 20_000 * p) for _ in range(300)])
+    p_null = np.array([_draw_from(p, seed).run().p_value for seed in range(300)])
     assert 0.02 <= np.mean(p_null < 0.05) <= 0.09  # binomial(300, 0.05): +-3.3 sigma
     q = p * (1.0 + 0.1 * np.sin(np.arange(p.size)))
-    assert chi2_test(rng.multinomial(20_000, q / q.sum()), 20_000 * p) < 1e-3
-    observed, expected = np.array([5.0, 5.0, 1.0]), np.array([5.5, 5.5, 0.0])
-    assert chi2_test(observed, expected) == 0.0  # a sample where the pdf is 0 rejects outright
+    assert _draw_from(q, 300, pmf=p, n=100_000).run().p_value < 1e-6
     assert sidak_alpha(0.01, 1) == pytest.approx(0.01, rel=1e-12)
     assert (1.0 - sidak_alpha(0.01, 28)) ** 28 == pytest.approx(0.99, rel=1e-12)
+
+
+def test_chi2_test_fails_outright_where_it_must():
+    p = np.array([0.2, 0.3, 0.5])
+    samples_where_pdf_is_0 = _draw_from(p, 1, pmf=np.array([0.4, 0.0, 0.6])).run()
+    assert not samples_where_pdf_is_0.passed and "pdf is 0" in samples_where_pdf_is_0.failure
+    for scale in (1.03, 0.97):  # a pdf that does not integrate to 1 while nothing is rejected
+        r = _draw_from(p, 2, pmf=scale * p).run()
+        assert not r.passed and "integrates to" in r.failure, r.report()
+    outside = ChiSquareTest(Interval(0.0, 1.0), lambda u: 1.01 * u[:, 0], _constant(1.0), 10, 1000, sample_dim=1)
+    assert "outside the domain" in outside.run().failure
+    # Rejected samples form one more cell, expected n (1 - integral), and their number is tested
+    # on its own: the upper half of uniform directions on the sphere against 1 / (4 pi) on the
+    # hemisphere passes, 4 % more fails.
+    upper = lambda u: (s.sample_uniform_sphere(u), s.sample_uniform_sphere(u)[:, 2] > 0.0)  # noqa: E731
+    ok = ChiSquareTest(Hemisphere(), upper, _constant(0.25 / np.pi), (10, 20), 100_000, seed=3).check()
+    assert ok.rejected_expected == pytest.approx(50_000) and 49_000 < ok.rejected < 51_000
+    too_much = ChiSquareTest(Hemisphere(), upper, _constant(1.04 * 0.25 / np.pi), (10, 20), 100_000, seed=3).run()
+    assert not too_much.passed and too_much.p_kept < 1e-9
+    with pytest.raises(AssertionError, match="rejected by the sampler"):  # the worst cell, in the report
+        too_much.check()
 
 
 def test_z_test_images_accepts_equal_and_rejects_shifted_means():

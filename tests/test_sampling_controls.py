@@ -154,7 +154,7 @@ def test_adaptive_applies_to_path_and_photon_only():
     assert not session.scene.settings.adaptive
 
 
-@pytest.mark.parametrize("kw, words", [(dict(adaptive_threshold=2.0), "noise threshold"),
+@pytest.mark.parametrize("kw, words", [(dict(adaptive_threshold=2.0), "adaptive threshold"),
                                        (dict(adaptive_min_samples=-3), "min samples")])
 def test_bad_adaptive_settings_are_refused(kw, words):
     with pytest.raises(EmberError, match=words):

@@ -8,7 +8,8 @@ of field). unregister() takes 'EMBER' out of exactly the sets it was added to.
 """
 import bpy
 
-from ..engine.integrators import REGISTRY
+from ..engine import settings as declared
+from ..engine.integrators import REGISTRY, honours
 from ..engine.passes import COMBINED, PASSES
 
 ENGINE = 'EMBER'
@@ -25,6 +26,51 @@ EXTRA_PANELS = (
 # BLENDER_RENDER panels left out: DATA_PT_light only draws the light-type row, which
 # DATA_PT_EEVEE_light draws too; the previews need bl_use_preview, which we do not set.
 EXCLUDED_PANELS = {'DATA_PT_light', 'DATA_PT_preview', 'TEXTURE_PT_preview'}
+GROUPS = {g.name: g for g in declared.GROUPS}
+
+
+# ---- settings drawn from their declarations (engine/settings.py) ---------------------------------
+def _owner(scene, s: declared.Setting):
+    """(bpy struct, property name) holding a declared setting, or None (e.g. no scene.cycles)."""
+    if s.bpy_prop:
+        return scene.ember, s.bpy_prop
+    owner, _, prop = s.blender.rpartition(".")
+    struct = getattr(scene, owner, None) if owner else None
+    return (struct, prop) if struct is not None and hasattr(struct, prop) else None
+
+
+def _value(scene, name: str):
+    """A declared setting's value as the core holds it (enum identifiers lower case)."""
+    s = declared.DECLARED[name]
+    found = _owner(scene, s)
+    return s.core(getattr(*found)) if found else s.default
+
+
+def _honoured(scene, s: declared.Setting) -> bool:
+    return honours(s, _value(scene, "integrator"), lambda name: _value(scene, name))
+
+
+def draw_settings(layout, scene, group: str, subpanel: str = "", hide_unhonoured: bool = True):
+    """The group's declared settings in declaration order, with their Ui hints: columns under
+    headings, a setting beside the one before, texts, icons, conditions. Settings the chosen
+    integrator does not honour are left out (hide_unhonoured) or greyed out."""
+    holds = lambda condition: declared.holds(condition, lambda name: _value(scene, name))  # noqa: E731
+    col = row = layout.column()
+    for s in GROUPS[group].settings:
+        ui, found = s.ui, _owner(scene, s)
+        if ui is None or found is None or ui.subpanel != subpanel or (ui.shown_if and not holds(ui.shown_if)):
+            continue
+        honoured = _honoured(scene, s)
+        if hide_unhonoured and not honoured:
+            continue
+        if ui.column is not None:
+            col = layout.column(align=True, heading=ui.column)
+        if not ui.beside:
+            row = col.row(align=True)
+        sub = row.row(align=True)
+        sub.active = honoured and (not ui.active_if or holds(ui.active_if))
+        text = next((t for condition, t in ui.texts if holds(condition)), s.label if ui.text is None else ui.text)
+        sub.prop(*found, text=text, icon=ui.icon or 'NONE')
 
 
 class EmberRenderPanel:
@@ -38,83 +84,56 @@ class EmberRenderPanel:
         return context.engine in cls.COMPAT_ENGINES
 
 
-class EMBER_RENDER_PT_sampling(EmberRenderPanel, bpy.types.Panel):
+class EmberSettingsPanel(EmberRenderPanel):
+    """A panel of one group of declared settings (its sub-panel's); settings the integrator
+    does not honour are left out, and the panel with them when none is left (hide_unhonoured),
+    or greyed out."""
+    group = ""
+    subpanel = ""
+    hide_unhonoured = True
+
+    @classmethod
+    def poll(cls, context):
+        drawn = [s for s in GROUPS[cls.group].settings if s.ui is not None and s.ui.subpanel == cls.subpanel]
+        return super().poll(context) and (not cls.hide_unhonoured or any(_honoured(context.scene, s) for s in drawn))
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        draw_settings(layout, context.scene, self.group, self.subpanel, self.hide_unhonoured)
+
+
+class EMBER_RENDER_PT_sampling(EmberSettingsPanel, bpy.types.Panel):
+    """As Cycles' Sampling > Render: noise threshold (adaptive), max/min samples, time limit."""
     bl_label = "Sampling"
+    group = "sampling"
+    hide_unhonoured = False
 
     def draw_header_preset(self, context):
         self.layout.menu("EMBER_MT_sampling_presets", text="", icon='PRESET')
 
-    def draw(self, context):
-        """As Cycles' Sampling > Render: noise threshold (adaptive), max/min samples, time limit."""
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        settings = context.scene.ember
-        col = layout.column()
-        col.prop(settings, "integrator")
-        heading = layout.column(align=True, heading="Noise Threshold")
-        row = heading.row(align=True)
-        row.prop(settings, "use_adaptive_sampling", text="")
-        sub = row.row()
-        sub.active = settings.use_adaptive_sampling
-        sub.prop(settings, "adaptive_threshold", text="")
-        col = layout.column(align=True)
-        if settings.use_adaptive_sampling:
-            col.prop(settings, "samples", text="Max Samples")
-            col.prop(settings, "adaptive_min_samples", text="Min Samples")
-        else:
-            col.prop(settings, "samples", text="Samples")
-        col.prop(settings, "preview_samples")
-        col.prop(settings, "time_limit")
-        col = layout.column()
-        col.prop(settings, "noise_target")
-        row = col.row(align=True)
-        row.prop(settings, "seed")
-        row.prop(settings, "use_animated_seed", text="", icon='TIME')
-        col.prop(settings, "pattern")
 
-
-class EMBER_RENDER_PT_sampling_advanced(EmberRenderPanel, bpy.types.Panel):
+class EMBER_RENDER_PT_sampling_advanced(EmberSettingsPanel, bpy.types.Panel):
     bl_label = "Advanced"
     bl_parent_id = "EMBER_RENDER_PT_sampling"
     bl_options = {'DEFAULT_CLOSED'}
-
-    def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        layout.prop(context.scene.ember, "sample_offset")
+    group = "sampling"
+    subpanel = "advanced"
+    hide_unhonoured = False
 
 
-class EMBER_RENDER_PT_light_paths(EmberRenderPanel, bpy.types.Panel):
+class EMBER_RENDER_PT_light_paths(EmberSettingsPanel, bpy.types.Panel):
     bl_label = "Light Paths"
     bl_options = {'DEFAULT_CLOSED'}
+    group = "light_paths"
+    hide_unhonoured = False  # greyed out: they still make `auto` choose the path tracer
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        settings = context.scene.ember
-        layout.prop(settings, "max_depth")
-        path_only = settings.integrator in ('PATH', 'AUTO')  # auto: these make it choose the path tracer
-        col = layout.column(heading="Bounces", align=True)
-        col.active = path_only  # the photon integrators use Max Bounces alone
-        col.prop(settings, "diffuse_bounces")
-        col.prop(settings, "glossy_bounces")
-        col.prop(settings, "transmission_bounces")
-        col.prop(settings, "transparent_bounces")
-        col = layout.column(heading="Clamping", align=True)
-        col.active = path_only
-        col.prop(settings, "clamp_direct")
-        col.prop(settings, "clamp_indirect")
-        col = layout.column(heading="Caustics", align=True)
-        col.active = path_only
-        col.prop(settings, "filter_glossy")
-        col.prop(settings, "caustics_reflective", text="Reflective")
-        col.prop(settings, "caustics_refractive", text="Refractive")
-        if not path_only:
-            layout.label(text="Per-type bounces, clamping and caustics apply to Path Tracing only",
-                         icon='INFO')
+        super().draw(context)
+        if not all(_honoured(context.scene, s) for s in GROUPS[self.group].settings):
+            self.layout.label(text="Per-type bounces, clamping and caustics apply to Path Tracing only",
+                              icon='INFO')
 
 
 class EMBER_RENDER_PT_motion_blur(EmberRenderPanel, bpy.types.Panel):
@@ -188,9 +207,10 @@ class EMBER_WORLD_PT_visibility(bpy.types.Panel):
         col.prop(vis, "transmission")
 
 
-class EMBER_RENDER_PT_performance(EmberRenderPanel, bpy.types.Panel):
+class EMBER_RENDER_PT_performance(EmberSettingsPanel, bpy.types.Panel):
     bl_label = "Performance"
     bl_options = {'DEFAULT_CLOSED'}
+    group = "performance"
 
     def draw(self, context):
         layout = self.layout
@@ -202,90 +222,32 @@ class EMBER_RENDER_PT_performance(EmberRenderPanel, bpy.types.Panel):
         sub = col.column(align=True)
         sub.enabled = rd.threads_mode == 'FIXED'
         sub.prop(rd, "threads")
-        layout.prop(context.scene.ember, "batch_size")
+        draw_settings(layout, context.scene, self.group)
 
 
-class EMBER_RENDER_PT_photons(EmberRenderPanel, bpy.types.Panel):
+class EMBER_RENDER_PT_photons(EmberSettingsPanel, bpy.types.Panel):
     bl_label = "Photon Mapping"
-
-    @classmethod
-    def poll(cls, context):
-        return super().poll(context) and context.scene.ember.integrator in ('PHOTON', 'PPM', 'PATH_CAUSTIC', 'AUTO')
-
-    def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        settings = context.scene.ember
-        col = layout.column()
-        if settings.integrator == 'PPM':
-            col.prop(settings, "photons", text="Photons per Pass")
-            col.prop(settings, "ppm_radius")
-            col.prop(settings, "ppm_alpha")
-            return
-        col.prop(settings, "photons")
-        col.prop(settings, "caustic_photons")
-        col.prop(settings, "photon_k")
-        col.prop(settings, "photon_kernel")
-        col.prop(settings, "global_radius")
-        col.prop(settings, "caustic_radius")
-        col.prop(settings, "gather_rays")
-        col.prop(settings, "radiance_photons")
-        col.prop(settings, "photon_view")
+    group = "photons"
 
 
-class EMBER_RENDER_PT_icache(EmberRenderPanel, bpy.types.Panel):
+class EMBER_RENDER_PT_icache(EmberSettingsPanel, bpy.types.Panel):
     bl_label = "Irradiance Cache"
-
-    @classmethod
-    def poll(cls, context):
-        return super().poll(context) and context.scene.ember.integrator in ('ICACHE', 'AUTO')
-
-    def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        settings = context.scene.ember
-        col = layout.column()
-        for name in ("icache_a", "icache_rays", "icache_gradients", "icache_weight", "icache_gather", "icache_view"):
-            col.prop(settings, name)
-        col.prop(settings, "icache_radiance")
-        sub = col.column()
-        sub.active = settings.icache_radiance
-        sub.prop(settings, "icache_radiance_order")
-        col = layout.column(heading="Photons")
-        if settings.icache_gather == 'PHOTON':
-            col.prop(settings, "photons")
-            col.prop(settings, "global_radius")
-            col.prop(settings, "radiance_photons")
-        col.prop(settings, "caustic_photons")
-        col.prop(settings, "caustic_radius")
-        col.prop(settings, "photon_k")
-        col.prop(settings, "gather_rays", text="Gather Rays (uncached)")
+    group = "icache"
 
 
-class EMBER_RENDER_PT_film(EmberRenderPanel, bpy.types.Panel):
-    """Settings Ember reads from Blender and Cycles that had no panel under Ember."""
+class EMBER_RENDER_PT_film(EmberSettingsPanel, bpy.types.Panel):
+    """Settings Ember reads from Blender and Cycles (the pixel filter: engine/blender/export_settings.py)."""
     bl_label = "Film"
     bl_options = {'DEFAULT_CLOSED'}
+    group = "film"
 
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        scene = context.scene
-        col = layout.column()
-        col.prop(scene.render, "film_transparent", text="Transparent")
-        cycles = getattr(scene, "cycles", None)
-        if cycles is not None:  # Ember reads Cycles' pixel filter (engine/blender/export_settings.py)
-            col.prop(cycles, "pixel_filter_type", text="Pixel Filter")
-            sub = col.column()
-            sub.active = cycles.pixel_filter_type != 'BOX'
-            sub.prop(cycles, "filter_width", text="Width")
-        world = scene.world
+        super().draw(context)
+        layout = self.layout.column()
+        world = context.scene.world
         if world is not None and hasattr(world, "cycles_visibility"):
-            col.prop(world.cycles_visibility, "camera", text="World Visible to Camera")
-        col.prop(context.view_layer, "material_override")
+            layout.prop(world.cycles_visibility, "camera", text="World Visible to Camera")
+        layout.prop(context.view_layer, "material_override")
 
 
 class EMBER_VIEWLAYER_PT_passes(EmberRenderPanel, bpy.types.Panel):

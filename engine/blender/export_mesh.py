@@ -46,8 +46,8 @@ def _ints(collection, prop, n) -> np.ndarray:
 
 
 def corner_tris_blender(me) -> np.ndarray:
-    """(T,3) corner (loop) indices of the loop triangles, straight from Blender (slow:
-    LoopTriangle properties are computed per element, ~0.4 s per million)."""
+    """(T,3) corner (loop) indices of the loop triangles, straight from Blender (slow: it
+    computes LoopTriangle properties per element, bench/results/viewport/report.md)."""
     return _ints(me.loop_triangles, "loops", 3 * len(me.loop_triangles)).reshape(-1, 3)
 
 

@@ -32,7 +32,8 @@ from .result import ResultWriter, blender_border
 
 REFRESH_SECONDS = 2.0  # film -> render result at least this often between passes
 # Preview renders (bl_use_preview): few samples, traced in this process (a worker pool's
-# start-up would cost more than the thumbnail), no passes (bench/preview.py measures them).
+# start-up would cost more than the thumbnail), no passes (measured in
+# bench/results/viewport/report.md).
 PREVIEW_OVERRIDES = dict(samples=16, threads=1, passes=(), max_depth=8)
 
 

@@ -188,6 +188,13 @@ class LiveExport:
         return Lights.make(rows)
 
 
+def viewport_overrides(scene, size) -> dict:
+    """Settings a viewport of `size` (width, height) pixels renders with, over the scene's: the
+    viewport samples (scene.ember.preview_samples), short work items, no passes."""
+    return dict(width=size[0], height=size[1], border=(0, 0) + tuple(size), batch_size=VIEWPORT_BATCH,
+                samples=int(scene.ember.preview_samples), passes=())
+
+
 class ViewportDriver:
     """What the RenderEngine's view_update / view_draw do (one per engine instance)."""
 
@@ -200,8 +207,7 @@ class ViewportDriver:
     def view_update(self, engine, context, depsgraph) -> None:
         t0 = time.perf_counter()
         size = (context.region.width, context.region.height)
-        overrides = dict(width=size[0], height=size[1], border=(0, 0) + size, batch_size=VIEWPORT_BATCH,
-                         samples=int(depsgraph.scene.ember.preview_samples), passes=())
+        overrides = viewport_overrides(depsgraph.scene, size)
         try:
             if self.export is None or size != self.size:
                 self.export = LiveExport(depsgraph, overrides)

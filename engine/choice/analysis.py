@@ -43,14 +43,16 @@ import numpy as np
 from .. import camera as camera_mod
 from .. import rng, sampling
 from ..accel import Accel, offset_origin
+from ..bsdf import lobes
 from ..integrators.base import TraceContext
 from ..integrators.path import PathTracer
+from ..integrators.path_options import Gather
+from ..integrators.path_state import PathState
 from ..integrators.photon.tracing import MIN_STORE_ROUGHNESS, PhotonTracer
 from ..lights import shapes
 from ..lights.emission import PhotonEmitter
 from ..lights.light_set import LightSet
-from ..scene import (LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, LOBE_DIELECTRIC, LOBE_DIFFUSE,
-                    LOBE_MICROFACET, LOBE_PHONG, LOBE_TRANSPARENT, Scene)
+from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, Scene
 from ..vec import dot, max3, scale, take
 
 TINY, LARGE = 0.02, 0.25  # light size classes, relative to the scene's bounding radius
@@ -145,7 +147,8 @@ def _light_classes(scene: Scene, lights: LightSet, R: float):
 # Materials
 
 def _lobe_albedo(m) -> np.ndarray:
-    """(K,) mean albedo of each lobe (textured colours: the image's mean texel)."""
+    """(K, 4) mean albedo of each lobe by class (lobes.ANALYSIS_CLASSES: diffuse, glossy,
+    specular, transparent; textured colours: the image's mean texel), as each lobe counts it."""
     color = m.lobe_color.copy()
     tex = np.flatnonzero(m.lobe_color_tex >= 0)
     for k in tex.tolist():
@@ -153,34 +156,22 @@ def _lobe_albedo(m) -> np.ndarray:
         w, h = m.image_size[img]
         o = int(m.image_offset[img])
         color[k] = m.image_texels[o:o + w * h, :3].mean(axis=0)
-    a = (m.lobe_weight * color).mean(axis=1)
-    # Glass passes or reflects almost all light whatever its tint; pass-through is its weight.
-    through = (m.lobe_kind == LOBE_DIELECTRIC) | (m.lobe_kind == LOBE_TRANSPARENT)
-    return np.maximum(np.where(through, m.lobe_weight.mean(axis=1), a), 0.0)
+    return lobes.analysis_albedo(m, color, MIN_STORE_ROUGHNESS)
 
 
 def _material_shares(scene: Scene, tri_area: np.ndarray):
     """Area shares (diffuse, glossy, specular, transparent) of the non-emitting surface."""
     m = scene.materials
-    k, rough = m.lobe_kind, m.lobe_roughness
     albedo = _lobe_albedo(m)
-    sharp = rough < MIN_STORE_ROUGHNESS
-    parts = {"diffuse": (k == LOBE_DIFFUSE), "glossy": ((k == LOBE_MICROFACET) | (k == LOBE_DIELECTRIC)) & ~sharp,
-             "specular": ((k == LOBE_MICROFACET) | (k == LOBE_DIELECTRIC)) & sharp, "transparent": k == LOBE_TRANSPARENT}
     n_mat = len(m.kind)
-    per = {name: np.bincount(m.lobe_material, weights=np.where(mask, albedo, 0.0), minlength=n_mat)
-           for name, mask in parts.items()}
-    # Phong: kd (the colour) is diffuse, ks (the tint) glossy.
-    phong = k == LOBE_PHONG
-    per["diffuse"] += np.bincount(m.lobe_material, weights=np.where(phong, albedo, 0.0), minlength=n_mat)
-    per["glossy"] += np.bincount(m.lobe_material, minlength=n_mat,
-                                 weights=np.where(phong, (m.lobe_weight * m.lobe_tint).mean(axis=1), 0.0))
+    per = {name: np.bincount(m.lobe_material, weights=albedo[:, j], minlength=n_mat)
+           for j, name in enumerate(lobes.ANALYSIS_CLASSES)}
     total = sum(per.values())
     area = np.bincount(scene.mesh.material, weights=tri_area, minlength=n_mat) if len(tri_area) else np.zeros(n_mat)
     emits = np.any(m.emission != 0, axis=1)
     weight = np.where(emits | (total <= 0), 0.0, area)  # black and emitting surfaces apart
     if weight.sum() <= 0:
-        return {name: 0.0 for name in parts}
+        return {name: 0.0 for name in per}
     return {name: float(np.sum(weight * np.divide(v, total, out=np.zeros(n_mat), where=total > 0)) / weight.sum())
             for name, v in per.items()}
 
@@ -232,8 +223,9 @@ def _indirect_pilot(scene, accel, lights, sampler, o, d, tmax, diffuse_first):
     tracer = PathTracer(scene, accel, lights)
     o32 = o.astype(np.float32)
     skip = np.full(len(d), -1, np.int64)
-    direct = tracer.trace(sampler, o, o32, d, tmax, skip, first_emission=False, max_depth=1)
-    total = tracer.trace(sampler, o, o32, d, tmax, skip, first_emission=False, max_depth=PILOT_DEPTH)
+    direct = tracer.trace(sampler, PathState.rays(o, o32, d, tmax, skip), Gather(first_emission=False, max_depth=1))
+    total = tracer.trace(sampler, PathState.rays(o, o32, d, tmax, skip),
+                         Gather(first_emission=False, max_depth=PILOT_DEPTH))
     indirect = (total - direct)[diffuse_first].mean(axis=1)
     direct, total = direct[diffuse_first].mean(axis=1), total[diffuse_first].mean(axis=1)
     d_sum, i_sum, mean = float(direct.sum()), float(indirect.sum()), float(total.mean())
@@ -329,10 +321,8 @@ def _material_shares_per_material(scene: Scene) -> np.ndarray:
     m = scene.materials
     albedo = _lobe_albedo(m)
     n_mat = len(m.kind)
-    diffuse = np.bincount(m.lobe_material, weights=np.where((m.lobe_kind == LOBE_DIFFUSE) | (m.lobe_kind == LOBE_PHONG),
-                                                            albedo, 0.0), minlength=n_mat)
-    ks = np.where(m.lobe_kind == LOBE_PHONG, (m.lobe_weight * m.lobe_tint).mean(axis=1), 0.0)
-    total = np.bincount(m.lobe_material, weights=albedo + ks, minlength=n_mat)
+    diffuse = np.bincount(m.lobe_material, weights=albedo[:, 0], minlength=n_mat)
+    total = np.bincount(m.lobe_material, weights=albedo.sum(axis=1), minlength=n_mat)
     return np.divide(diffuse, total, out=np.zeros(n_mat), where=total > 0)
 
 

@@ -11,9 +11,10 @@ the seed prescribes and as SmallVCM does: the BSDF strategy's effective density 
 with p_L = P(light) p_light(w) for the light actually sampled or hit. Delta lights and
 camera rays get weight 1.
 
-Wavefront: one batch of paths advances one bounce at a time; each bounce is one Embree
-call for all live rays (plus one occlusion call for the shadow rays) and the shading runs
-per material kind over index groups.
+Wavefront: one batch of paths (a PathState) advances one bounce at a time; each bounce is
+one Embree call for all live rays (plus one occlusion call for the shadow rays) and the
+shading runs per material kind over index groups. A bounce is a few steps (PathTracer.trace),
+each with its options in a record (path_options.py).
 """
 from __future__ import annotations
 
@@ -23,16 +24,18 @@ from ..vec import dot, gatherer, max3, scale, take
 
 from .. import camera as camera_mod
 from ..accel import Accel, offset_origin
-from ..bsdf.closure import LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT
+from ..bsdf.closure import LABEL_TRANSPARENT
 from ..bsdf.fast_path import make_closure, plain_lambert_albedo
 from ..errors import Cancelled
 from ..lights.light_set import LightSet
 from ..rng import Sampler
-from ..scene import LOBE_TRANSPARENT, RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, Scene
+from ..scene import RAY_CAMERA, Scene
 from .. import passes as passes_mod
 from ..visibility import RayVisibility
 from .base import Integrator, Stage
 from .light_passes import LightTally
+from .path_options import CAMERA_PATHS, Clamp, ClosureOptions, Gather, LightPaths, Strategy
+from .path_state import PathState, rows_of
 from .surface import flat_frame_rows, flat_frames, flat_normals, shading_frame, towards
 from ..layout import BatchLayout
 
@@ -47,8 +50,7 @@ _LIGHT, _BSDF = 0, 1
 # which run in a pool of one batch (Settings.batch_size) of live paths, topped up with the
 # item's next camera paths whenever fewer than REFILL_BELOW x the pool remain. The narrow
 # bounces of the pool's last paths (the tail) then come once per item instead of once per
-# batch: 17 % of the CPU time in the open caustic scene, 3 % in the Cornell box
-# (bench/results/tail/notes.md).
+# batch (bench/results/tail/notes.md).
 ITEM_BATCHES = 4
 REFILL_BELOW = 0.5
 
@@ -61,43 +63,21 @@ def _accumulate(L: np.ndarray, rows: np.ndarray, c: np.ndarray) -> None:
 
 class PathTracer:
     def __init__(self, scene: Scene, accel: Accel, lights: LightSet):
-        self.scene = scene
-        self.accel = accel
-        self.lights = lights
-        self.materials = scene.materials
-        self.emissive_material = np.any(scene.materials.emission != 0, axis=1)  # negative emission too
+        self.scene, self.accel, self.lights = scene, accel, lights
+        self.mesh, self.materials = scene.mesh, scene.materials
+        emissive = np.any(scene.materials.emission != 0, axis=1)  # per material; negative emission too
+        self.emissive_prim = np.append(emissive[scene.mesh.material], False)  # per triangle; a miss (-1): False
         self.lambert_albedo = plain_lambert_albedo(scene.materials)
         self.flat_normal = flat_normals(scene.mesh)  # None unless every triangle is flat-shaded
         self.flat_frames = flat_frames(scene.mesh, self.flat_normal, accel.ng)  # or None
         # Barycentrics serve smooth normals and the general closure (textures) only.
         self.needs_bary = self.flat_normal is None or bool(np.isnan(self.lambert_albedo).any())
-        self.max_depth = scene.settings.max_depth
-        self.rr_depth = scene.settings.rr_depth
-        strategy = scene.settings.strategy
-        self.use_nee = strategy in ("mis", "light")
-        # Weight of emission found by BSDF sampling relative to MIS: "bsdf" alone counts it in
-        # full (use_mis False), "light" alone drops it after non-delta bounces.
-        self.bsdf_hits = strategy in ("mis", "bsdf")
-        self.mis = strategy == "mis"
-        st = scene.settings
-        self.limits = np.zeros(4, np.int64)  # per LABEL_*
-        self.limits[[LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT]] = (
-            st.diffuse_bounces, st.glossy_bounces, st.transmission_bounces, st.transparent_bounces)
-        self.has_transparent = np.zeros(len(scene.materials.kind), bool)  # may pass a path at its last vertex
-        self.has_transparent[scene.materials.lobe_material[scene.materials.lobe_kind == LOBE_TRANSPARENT]] = True
-        self.caustics_reflective, self.caustics_refractive = st.caustics_reflective, st.caustics_refractive
-        self.filter_glossy = st.filter_glossy
         self.visibility = RayVisibility(accel, scene.mesh)  # objects hidden from some rays
-        # Per-path state only where a scene needs it (see _Bounces).
-        self.any_transparent = bool(self.has_transparent.any())
-        self.counted = bool(np.any(self.limits[[LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT]] < self.max_depth)
-                            or self.any_transparent)
-        self.ray_kinds = bool(lights.partial_visibility or not self.visibility.trivial or self.any_transparent
-                              or not (st.caustics_reflective and st.caustics_refractive))
-        # (direct, indirect) clamping limits on |R|+|G|+|B| (Cycles stores 3 x the UI value), None = off.
-        self.clamp = None
-        if st.clamp_direct > 0 or st.clamp_indirect > 0:
-            self.clamp = tuple(3.0 * v if v > 0 else np.inf for v in (st.clamp_direct, st.clamp_indirect))
+        st = scene.settings
+        self.strategy = Strategy.of(st.strategy)
+        self.clamp = Clamp.of(st)  # None: off
+        self.light_paths = LightPaths.of(scene, lights, self.visibility)
+        self.closure_options = ClosureOptions.of(st)
 
     def render(self, sampler, px: np.ndarray, py: np.ndarray, stop=None, tally=None) -> np.ndarray:
         """Radiance estimates (N,3), one path per pixel (px, py). Raises Cancelled if stop is set.
@@ -105,332 +85,255 @@ class PathTracer:
         the paths run in a pool of one batch, topped up as paths end (path regeneration)."""
         s = self.scene
         o64, d, tmax = camera_mod.camera_rays(s.camera, s.settings, px, py, sampler)
-        rays = (o64, o64.astype(np.float32), d, tmax, np.full(len(px), -1, np.int64))
+        paths = PathState.rays(o64, o64.astype(np.float32), d, tmax, np.full(len(px), -1, np.int64))
         if tally is not None:  # light passes count per bounce: those items are one batch
-            return self.trace(sampler, *rays, stop, tally=tally)
-        refill = _Refill(*rays, pool=s.settings.batch_size)
-        return self.trace(sampler, *refill.take(min(refill.pool, refill.n)), stop, refill=refill)
+            return self.trace(sampler, paths, stop=stop, tally=tally)
+        refill = _Refill(paths, pool=s.settings.batch_size)
+        return self.trace(sampler, refill.take(min(refill.pool, refill.n)), stop=stop, refill=refill)
 
-    def trace(self, sampler, o64, o32, d, tmax, skip, stop=None, first_emission=True,
-              max_depth=None, t_first=None, tally=None, caustic_ends=None, refill=None) -> np.ndarray:
-        """Radiance (N,3) arriving along rays from o64 (float64 points; o32 their offset float32
-        origins, skip the primitive each leaves or -1) in directions d; tmax (N,) or None.
-        Random groups from 1 (group 0 is the caller's). first_emission False leaves out the
-        emission the rays themselves find (a gather ray whose direct light is sampled apart);
-        max_depth: bounces after the first hit (default: the scene's); t_first (N,), if given,
-        receives the first hit's distance (inf where the ray escaped); tally: light passes
-        (render, camera rays only); caustic_ends (M,) bool per material, or None: light that a
-        path finds before it reaches one of these materials is left out (a gather path from a
-        point whose caustics come from a caustic map: that map holds exactly those paths).
+    def trace(self, sampler, paths: PathState, gather: Gather = CAMERA_PATHS, stop=None, tally=None,
+              refill=None) -> np.ndarray:
+        """Radiance (N,3) arriving along the rays of `paths` (PathState.rays: its rows idx are
+        the result's; the trace takes the state over). Random groups from 1 (group 0 is the
+        caller's). gather: what the trace collects (camera paths by default); tally: light
+        passes (render, camera rays only); raises Cancelled if stop is set.
 
-        refill: a _Refill (path regeneration) whose first rays are the ones given: the live
-        paths are topped up with its next rays whenever fewer than REFILL_BELOW x its pool
-        remain, and the result has a row for each of its rays. Paths then sit at different
+        refill: a _Refill (path regeneration) whose first paths are the ones given: the live
+        paths are topped up with its next ones whenever fewer than REFILL_BELOW x its pool
+        remain, and the result has a row for each of its paths. Paths then sit at different
         bounces (depth per path), yet each path draws the same numbers and sums the same
         terms in the same order, so the result is the same bit for bit."""
-        n = len(d)
-        L = np.zeros((3, n if refill is None else refill.n))  # channel-major: see _accumulate
-        idx = np.arange(n)  # which pixel sample each live path belongs to
-        beta = np.ones((n, 3))
-        pdf_prev = np.zeros(n)  # q * p_b of the bounce that produced the ray
-        no_mis = np.ones(n, bool)  # camera ray: emitters seen with weight 1
-        # Paths whose light is left out so far (caustic_ends; else first_emission at depth 0).
-        dark = np.full(n, caustic_ends is not None)
-        mesh = self.scene.mesh
-        max_depth = self.max_depth if max_depth is None else max_depth
-        bounces = _Bounces.start(n, max_depth, self.any_transparent, self.counted, self.ray_kinds,
-                                 self.filter_glossy > 0)
-        limit = max_depth + self.limits[LABEL_TRANSPARENT] + 1  # rays a path traces at most
-        # Bounces so far: one int for all paths, or one per path with regeneration.
-        depth = 0 if refill is None else np.zeros(len(idx), np.int64)
-        if refill is not None:
-            bounces = bounces.per_path(len(idx))
+        L = np.zeros((3, len(paths) if refill is None else refill.n))  # channel-major: see _accumulate
+        max_depth = self.light_paths.max_depth if gather.max_depth is None else gather.max_depth
+        rays = self.light_paths.rays_at_most(max_depth)
+        paths = self._start(paths, gather, max_depth, per_path=refill is not None)
+        t_first = gather.t_first  # the first rays' only
         while True:
             if stop is not None and stop.is_set():
                 raise Cancelled()
-            pending = refill is not None and refill.left > 0
-            if pending and len(idx) < REFILL_BELOW * refill.pool:
-                k = min(refill.pool - len(idx), refill.left)
-                new = _Bounces.start(k, max_depth, self.any_transparent, self.counted, self.ray_kinds,
-                                     self.filter_glossy > 0).per_path(k)
-                fresh = (np.arange(refill.next, refill.next + k), *refill.take(k))
-                idx, o64, o32, d, tmax, skip = (np.concatenate([a, b]) for a, b in zip((idx, o64, o32, d, tmax, skip),
-                                                                                          fresh))
-                depth, dark = np.concatenate([depth, np.zeros(k, np.int64)]), np.concatenate([dark, np.zeros(k, bool)])
-                beta, pdf_prev = np.concatenate([beta, np.ones((k, 3))]), np.concatenate([pdf_prev, np.zeros(k)])
-                no_mis, bounces = np.concatenate([no_mis, np.ones(k, bool)]), bounces.join(new)
-                pending = refill.left > 0
-            if len(idx) == 0:
+            paths = self._top_up(paths, refill, gather, max_depth)  # path regeneration
+            if len(paths) == 0:
                 break
-            base = 1 + _GROUPS * depth  # random groups of this bounce (per path with regeneration)
-            kind = bounces.ray  # None when no visibility or caustics toggle needs it
-            hit = self.visibility.intersect(o32, d, tmax, skip, kind)
-            if t_first is not None and depth == 0:
-                t_first[:] = np.where(hit.prim >= 0, hit.t, np.inf)
-            camera_ray = kind == RAY_CAMERA if kind is not None else np.broadcast_to(depth == 0, len(idx))
-            emission = (first_emission or depth > 0) & ~dark  # (n,) bool
-            # Emission found by this ray is "direct" for clamping after at most one bounce.
-            direct = bounces.total <= 1 if self.clamp is not None else None
-            # Light objects the ray passes on its way (they do not stop it).
-            if len(self.lights.hittable) and emission.any():
-                c = beta * self.lights.emission_along(o64, d, hit.t, pdf_prev, ~no_mis, camera_ray, kind)
-                c[~emission] = 0.0
-                c = self._clamp(c, direct)
-                _accumulate(L, idx, c)
-                if tally:
-                    tally.emitted(depth, idx, c)
-            # Escaped rays see the suns and the world.
-            missed = hit.prim < 0
-            if missed.any() and self.lights.sees_escaped and emission.any():
-                r = np.flatnonzero(missed & emission)
-                c = take(beta, r) * self.lights.escaped(take(d, r), pdf_prev[r], ~no_mis[r], camera_ray[r],
-                                                        None if kind is None else kind[r])
-                c = self._clamp(c, direct, r)
-                _accumulate(L, idx[r], c)
-                if tally:
-                    tally.emitted(depth, idx[r], c, escaped=True)
-            o_prev = o64  # previous vertices, indexed through `keep` where needed
-            keep = np.flatnonzero(~missed)
-            if len(keep) == 0 and not pending:
+            hit = paths.intersect(self.visibility, paths.bounces.ray, t_first)  # one Embree call
+            t_first = None
+            self._emission(L, paths, hit, gather, tally)  # found by the rays, weighted by MIS
+            paths = paths.arrive(hit, np.flatnonzero(hit.prim >= 0), self.mesh.material, self.needs_bary)
+            paths = self._terminate(paths)  # bounce limits, holdouts
+            if len(paths) == 0 and not (refill is not None and refill.left > 0):
                 break
-            if len(keep) < len(missed):  # drop the escaped rays before their hit points are rebuilt
-                idx, pdf_prev, no_mis = idx[keep], pdf_prev[keep], no_mis[keep]
-                emission, dark, depth, base = emission[keep], dark[keep], _rows(depth, keep), _rows(base, keep)
-                beta, d, hit = take(beta, keep), take(d, keep), hit.take(keep)
-                bounces = bounces.take(keep)
-            hit_t, prim, hit_p, ng = hit.t, hit.prim, hit.p, hit.ng
-            bary = hit.b if self.needs_bary else None
-            mat = mesh.material[prim]
-            # Emissive triangles hit by the ray.
-            emits = self.emissive_material[mat] & emission
-            if emits.any():
-                r = np.flatnonzero(emits)
-                Le = take(self.materials.emission, mat[r])
-                cos_l = np.abs(dot(take(d, r), take(ng, r)))
-                pdf_light = self.lights.pdf_triangle_hit(prim[r], take(o_prev, keep[r]), hit_t[r], cos_l)
-                w = np.where(no_mis[r], 1.0, pdf_prev[r] / np.maximum(pdf_prev[r] + pdf_light, 1e-300))
-                c = self._clamp(take(beta, r) * scale(Le, w), bounces.total <= 1, r)
-                _accumulate(L, idx[r], c)
-                if tally:
-                    tally.emitted(depth, idx[r], c)
-            # A path past a bounce limit ends at this vertex, except through transparent
-            # surfaces when the limit was not the transparent one (Cycles' path_state_next).
-            ends = bounces.last & ~self.has_transparent[mat] if self.any_transparent else bounces.last
-            if bounces.stop is not None:
-                ends |= bounces.stop
-            if self.visibility.holdout is not None:  # camera rays end black on holdout objects
-                ends |= self.visibility.holdout[prim] & (bounces.ray == RAY_CAMERA)
-            if ends.any():
-                keep = np.flatnonzero(~ends)
-                if len(keep) == 0 and not pending:
+            bsdf = self._closure(paths, tally)
+            q = self._survival(paths, bsdf)  # Russian roulette's, fixed before sampling
+            if paths.specular is not None:  # light found from a caustic end on is not the caustic map's
+                paths.specular &= ~gather.caustic_ends[paths.mat]
+            self._next_event(L, sampler, paths, bsdf, q, tally)  # one light sample
+            paths = self._scatter(sampler, paths, bsdf, q, tally)  # one BSDF sample goes on
+            if np.ndim(paths.depth) == 0:  # a path traces at most `rays` rays
+                if paths.depth >= rays:
                     break
-                idx, pdf_prev, no_mis, prim, mat = idx[keep], pdf_prev[keep], no_mis[keep], prim[keep], mat[keep]
-                dark, depth, base = dark[keep], _rows(depth, keep), _rows(base, keep)
-                beta, hit_p, d, ng = (take(a, keep) for a in (beta, hit_p, d, ng))
-                bary = None if bary is None else take(bary, keep)
-                bounces = bounces.take(keep)
-            # Shading frame, flipped to the side the ray came from (two-sided, like Cycles).
-            wo = -d
-            frame = None
-            if self.flat_frames is not None:
-                ng_f, ns, *frame = flat_frame_rows(self.flat_frames, prim, ng, wo)
-            else:
-                ng_f, ns = shading_frame(mesh, self.flat_normal, prim, bary, ng, wo)
-            bsdf = make_closure(self.scene, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary,
-                                self._no_caustics(bounces), self._blur(bounces), frame)
-            ns = bsdf.ns  # may be perturbed (normal maps)
-            # A closure that only reflects puts every lit or sampled direction on ng_f's side.
-            reflects = bsdf.reflects_only
-            if tally and depth == 0:
-                tally.first_hit(idx, bsdf)
-            albedo = max3(bsdf.reflectance)
-            q = np.where(depth >= self.rr_depth, np.minimum(1.0, albedo), 1.0)
-            m = len(idx)
-            if caustic_ends is not None:
-                dark &= ~caustic_ends[mat]
-            # Next-event estimation at points whose BSDF has a non-delta part.
-            # A Lambertian closure's black points (emitters) get exact zeros from it: sampling them too
-            # spares gathering every array for the others.
-            smooth = np.ones(m, bool) if reflects else bsdf.has_smooth
-            active = np.flatnonzero((smooth & ~bounces.last if self.any_transparent else smooth) & ~dark)
-            if len(active) and self.use_nee and not self.lights.empty:
-                at = gatherer(active, m)
-                u_light = sampler.get(_rows(base, active) + _LIGHT, at(idx), 3)
-                ls = self.lights.sample(at(hit_p), u_light[:, 2], u_light[:, :2], in_unit=True)
-                f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility)
-                cos_i = np.abs(dot(ls.wi, at(ns)))
-                pdf_b_mis = at(q) * pdf_b if self.mis else 0.0
-                w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_b_mis, 1e-300))
-                contrib = at(beta) * f * scale(ls.Le, np.divide(cos_i * w, ls.pdf, out=np.zeros(len(active)),
-                                                                 where=ls.valid))
-                # Column by column (an axis-1 reduction is several times slower); negative lights subtract.
-                test = np.flatnonzero((contrib[:, 0] != 0) | (contrib[:, 1] != 0) | (contrib[:, 2] != 0))
-                if len(test):
-                    rows = active[test]
-                    n_off = take(ng_f, rows) if reflects else towards(take(ng_f, rows), take(ls.wi, test))
-                    o_shadow = offset_origin(take(hit_p, rows), n_off)
-                    blocked = self.visibility.occluded(o_shadow, take(ls.target, test), prim[rows], ls.target_prim[test])
-                    lit = np.flatnonzero(~blocked)
-                    c = self._clamp(take(contrib, test[lit]), bounces.total == 0, rows[lit])
-                    _accumulate(L, idx[rows[lit]], c)
-                    if tally:
-                        f_cls = bsdf.eval_by_class(take(ls.wi, test[lit]), rows[lit]) if depth == 0 else None
-                        tally.light_sample(depth, idx[rows[lit]], c, f_cls)
-            # BSDF sampling continues the path; Russian roulette with survival q.
-            if reflects:  # one lobe: no lane 2 to draw; a Sampler's numbers need no clamp
-                u_bsdf = sampler.get(base + _BSDF, idx, lanes=(0, 1, 3))
-                bs, u_rr = bsdf.sample(u_bsdf[:, :2], None, in_unit=True), u_bsdf[:, 2]
-            else:
-                u_bsdf = sampler.get(base + _BSDF, idx, 4)
-                bs, u_rr = bsdf.sample(u_bsdf[:, :2], u_bsdf[:, 2]), u_bsdf[:, 3]
-            if tally and depth == 0:
-                tally.first_bounce(idx, bsdf, bs)
-            survive = bs.valid & (u_rr < q)
-            if self.any_transparent:  # a path at its last vertex goes on only through transparency
-                survive &= ~bounces.last | (bs.label == LABEL_TRANSPARENT)
-            beta = beta * scale(bs.weight, np.divide(1.0, q, out=np.zeros(m), where=survive))
-            survive &= max3(beta) > 0
-            keep = np.flatnonzero(survive)
-            idx, beta, d, dark = idx[keep], take(beta, keep), take(bs.wi, keep), dark[keep]
-            depth = _rows(depth, keep) + 1
-            bounces = bounces.take(keep).count(bs, keep, self.limits, max_depth)
-            # Strategy switches: pdf_prev 0 makes emission found after a non-delta bounce weigh 0
-            # ("light" alone); no_mis makes it weigh 1 (after delta bounces, or "bsdf" alone).
-            pdf_prev = (q * bs.pdf)[keep] if self.bsdf_hits else np.zeros(len(keep))
-            no_mis = bs.delta[keep] | (not self.use_nee)
-            o64 = take(hit_p, keep)
-            o32 = offset_origin(o64, take(ng_f, keep) if reflects else towards(take(ng_f, keep), d))
-            skip = prim[keep]
-            tmax = None if refill is None else np.full(len(keep), np.inf)  # joined with camera rays'
-            if np.ndim(depth) == 0:
-                if depth >= limit:
-                    break
-            elif len(depth) and depth.max() >= limit:
-                alive = np.flatnonzero(depth < limit)
-                idx, beta, d, dark, depth, pdf_prev, no_mis, skip, tmax = (
-                    a[alive] for a in (idx, beta, d, dark, depth, pdf_prev, no_mis, skip, tmax))
-                o64, o32, bounces = o64[alive], o32[alive], bounces.take(alive)
+            elif len(paths) and paths.depth.max() >= rays:
+                paths = paths.take(np.flatnonzero(paths.depth < rays))
         return np.ascontiguousarray(L.T)
 
-    def _clamp(self, c: np.ndarray, direct: np.ndarray, rows=None) -> np.ndarray:
-        """Contributions c (K,3) clamped as Cycles' film_clamp_light: where |R|+|G|+|B| exceeds
-        3 x the limit (clamp_direct where `direct` (K,) (or direct[rows]), else clamp_indirect;
-        0 = none), c is scaled to it (hue kept)."""
-        if self.clamp is None:
-            return c
-        limit = np.where(direct if rows is None or np.ndim(direct) == 0 else direct[rows], *self.clamp)
-        total = np.abs(c).sum(axis=1)
-        over = total > limit
-        if not over.any():
-            return c
-        return scale(c, np.where(over, limit / np.where(over, total, 1.0), 1.0))
+    def _start(self, paths: PathState, gather: Gather, max_depth: int, per_path: bool) -> PathState:
+        """paths on their first rays as this tracer's: throughput 1, emission found by the
+        rays with weight 1 (camera rays), no bounce yet; per_path: depth and bounce counts per
+        path (regeneration). The arrays are set in place."""
+        n = len(paths)
+        paths.beta, paths.pdf_prev, paths.no_mis = np.ones((n, 3)), np.zeros(n), np.ones(n, bool)
+        paths.specular = np.ones(n, bool) if gather.caustic_ends is not None else None
+        paths.depth = np.zeros(n, np.int64) if per_path else 0
+        paths.bounces = self.light_paths.start(n, max_depth, per_path)
+        return paths
 
-    def _blur(self, bounces):
-        """Filter Glossy (Cycles' surface_shader.h): GGX alpha at least sqrt(1 - p) / 2 with
-        p = min_ray_pdf / filter_glossy where p < 1, or None when off."""
-        if not self.filter_glossy > 0:
-            return None
-        p = bounces.min_pdf / self.filter_glossy
-        return np.where(p < 1.0, 0.5 * np.sqrt(np.maximum(1.0 - p, 0.0)), 0.0)
+    def _top_up(self, paths: PathState, refill, gather: Gather, max_depth: int) -> PathState:
+        """Path regeneration: fewer than REFILL_BELOW x the pool live, the pool is topped up
+        with the item's next paths (appended, at bounce 0)."""
+        if refill is None or refill.left == 0 or len(paths) >= REFILL_BELOW * refill.pool:
+            return paths
+        k = min(refill.pool - len(paths), refill.left)
+        return paths.join(self._start(refill.take(k), gather, max_depth, per_path=True))
 
-    def _no_caustics(self, bounces):
-        """(drop_reflection, drop_refraction) for the closure, or None with both caustics on."""
-        if self.caustics_reflective and self.caustics_refractive:
-            return None
-        after = bounces.ray == RAY_DIFFUSE  # the last non-transparent bounce was diffuse
-        return (after & (not self.caustics_reflective), after & (not self.caustics_refractive))
-
-
-class _Bounces:
-    """Per-path bounce state as Cycles' path_state_next keeps it. Arrays a scene does not need
-    are None: total (N,) non-transparent bounces so far; last (N,) bool: the path is over a
-    limit, its ray adds the emission it finds and goes on only through transparency
-    (TERMINATE_AFTER_TRANSPARENT); stop (N,) bool: the transparent limit is reached, the next
-    surface is the last (TERMINATE_ON_NEXT_SURFACE; None without transparent materials);
-    counts (N,4) bounces per LABEL_* (None when no per-type limit is below the total); ray (N,)
-    RAY_* kind of the path's ray: camera until the first non-transparent bounce, then that
-    bounce's kind (None when nothing depends on it); min_pdf (N,) the smallest non-delta BSDF
-    pdf so far (Cycles' min_ray_pdf; None without Filter Glossy). When none of these is kept
-    and no surface is transparent, every path has made the same number of bounces: total and
-    last are then scalars (no per-path arrays to carry)."""
-
-    def __init__(self, **arrays):
-        self.__dict__.update(arrays)
+    def _emission(self, L, paths: PathState, hit, gather: Gather, tally) -> None:
+        """Emission the rays find, weighted by the balance heuristic against light sampling
+        (pdf_prev / (pdf_prev + p_L); 1 where no_mis): light objects they pass on their way
+        (those do not stop them), suns and the world where they escape, emissive triangles
+        they hit. Emission is "direct" for clamping after at most one bounce."""
+        lit = self._lit(paths, gather)
+        if lit is False:
+            return
+        lights, b, depth, idx = self.lights, paths.bounces, paths.depth, paths.idx
+        kind = b.ray  # None when no visibility or caustics toggle needs it
+        camera_ray = kind == RAY_CAMERA if kind is not None else np.broadcast_to(depth == 0, len(paths))
+        direct = b.total <= 1 if self.clamp is not None else None
+        use_mis = ~paths.no_mis
+        if len(lights.hittable):
+            c = paths.beta * lights.emission_along(paths.o64, paths.d, hit.t, paths.pdf_prev, use_mis, camera_ray, kind)
+            if lit is not None:
+                c[~lit] = 0.0
+            self._add(L, idx, self._clamp(c, direct), tally, depth)
+        missed = hit.prim < 0
+        if lights.sees_escaped and missed.any():
+            r = np.flatnonzero(missed if lit is None else missed & lit)
+            c = take(paths.beta, r) * lights.escaped(take(paths.d, r), paths.pdf_prev[r], use_mis[r], camera_ray[r],
+                                                     None if kind is None else kind[r])
+            self._add(L, idx[r], self._clamp(c, direct, r), tally, depth, escaped=True)
+        emits = self.emissive_prim[hit.prim]
+        if lit is not None:
+            emits &= lit
+        if emits.any():
+            r = np.flatnonzero(emits)
+            prim, pdf_prev = hit.prim[r], paths.pdf_prev[r]
+            Le = take(self.materials.emission, self.mesh.material[prim])
+            cos_l = np.abs(dot(take(paths.d, r), hit.take(r).ng))
+            pdf_light = lights.pdf_triangle_hit(prim, take(paths.o64, r), hit.t[r], cos_l)
+            w = np.where(paths.no_mis[r], 1.0, pdf_prev / np.maximum(pdf_prev + pdf_light, 1e-300))
+            self._add(L, idx[r], self._clamp(take(paths.beta, r) * scale(Le, w), b.total <= 1, r), tally, depth)
 
     @staticmethod
-    def start(n, max_depth, stop, counts, ray, min_pdf) -> "_Bounces":
-        uniform = not (stop or counts or ray or min_pdf)
-        return _Bounces(total=np.int32(0) if uniform else np.zeros(n, np.int32),
-                        last=np.bool_(max_depth <= 0) if uniform else np.full(n, max_depth <= 0),  # 0: emission only
-                        stop=np.zeros(n, bool) if stop else None,
-                        counts=np.zeros((n, 4), np.int32) if counts else None,
-                        ray=np.full(n, RAY_CAMERA, np.uint8) if ray else None,
-                        min_pdf=np.full(n, np.inf) if min_pdf else None)
+    def _lit(paths: PathState, gather: Gather):
+        """Whose found light counts: None (every path's), False (none's) or (N,) bool."""
+        lit = gather.first_emission or paths.depth > 0
+        if paths.specular is not None:
+            lit = lit & ~paths.specular
+        if np.ndim(lit) == 0:
+            return None if lit else False
+        return lit if lit.any() else False
 
-    def take(self, rows) -> "_Bounces":
-        return _Bounces(**{k: v if v is None or np.ndim(v) == 0 else v[rows] for k, v in vars(self).items()})
+    def _terminate(self, paths: PathState) -> PathState:
+        """The paths that go on from their vertices. A path past a bounce limit ends there,
+        except through transparent surfaces when the limit was not the transparent one
+        (Cycles' path_state_next); camera rays end black on holdout objects."""
+        b, lp = paths.bounces, self.light_paths
+        ends = b.last & ~lp.transparent[paths.mat] if lp.any_transparent else b.last
+        if b.stop is not None:
+            ends = ends | b.stop
+        if self.visibility.holdout is not None:
+            ends = ends | (self.visibility.holdout[paths.prim] & (b.ray == RAY_CAMERA))
+        return paths.take(np.flatnonzero(~ends)) if ends.any() else paths
 
-    def per_path(self, n: int) -> "_Bounces":
-        """The same state with total and last as (n,) arrays (paths at different bounces)."""
-        return _Bounces(**{**vars(self), "total": np.broadcast_to(self.total, n).astype(np.int32),
-                           "last": np.broadcast_to(self.last, n).copy()})
+    def _closure(self, paths: PathState, tally):
+        """The BSDF at the paths' vertices, in the shading frame flipped to the side the ray
+        came from (two-sided, like Cycles); paths.ng becomes the flipped geometric normal."""
+        wo = -paths.d
+        frame = None
+        if self.flat_frames is not None:
+            ng_f, ns, *frame = flat_frame_rows(self.flat_frames, paths.prim, paths.ng, wo)
+        else:
+            ng_f, ns = shading_frame(self.mesh, self.flat_normal, paths.prim, paths.bary, paths.ng, wo)
+        paths.ng = ng_f
+        b, options = paths.bounces, self.closure_options
+        bsdf = make_closure(self.scene, self.lambert_albedo, paths.mat, ns, ng_f, wo, paths.prim, paths.bary,
+                            options.no_caustics(b), options.blur(b), frame)
+        if tally and paths.depth == 0:
+            tally.first_hit(paths.idx, bsdf)
+        return bsdf
 
-    def join(self, other: "_Bounces") -> "_Bounces":
-        """These paths followed by other's (both per path)."""
-        return _Bounces(**{k: v if v is None else np.concatenate([v, getattr(other, k)]) for k, v in vars(self).items()})
+    def _survival(self, paths: PathState, bsdf) -> np.ndarray:
+        """Russian roulette's survival probability q (N,): the BSDF's largest reflectance
+        (at most 1), fixed before sampling; 1 for the first rr_depth bounces."""
+        return np.where(paths.depth >= self.light_paths.rr_depth, np.minimum(1.0, max3(bsdf.reflectance)), 1.0)
 
-    def count(self, bs, rows, limits: np.ndarray, max_depth: int) -> "_Bounces":
-        """The state after the bounce sampled in bs (BSDFSample) at rows (N,); limits (4,)."""
-        if self.counts is None and self.ray is None and self.min_pdf is None:  # every bounce counts alike
-            self.total = self.total + 1  # scalars or arrays alike
-            self.last = self.last | (self.total >= max_depth)
-            return self
-        label = bs.label[rows]
-        see_through = label == LABEL_TRANSPARENT
-        self.total += ~see_through
-        over = self.total >= max_depth
-        if self.counts is not None:
-            i = np.arange(len(label))
-            self.counts[i, label] += 1
-            reached = self.counts[i, label] >= limits[label]
-            over |= reached
-            if self.stop is not None:  # tracked with counts (transparent materials)
-                self.stop |= see_through & reached
-        self.last |= ~see_through & over
-        if self.ray is not None:
-            self.ray = np.where(see_through, self.ray, _RAY_OF_LABEL[label])
-        if self.min_pdf is not None:
-            self.min_pdf = np.where(bs.delta[rows], self.min_pdf, np.minimum(self.min_pdf, bs.pdf[rows]))
-        return self
+    def _next_event(self, L, sampler, paths: PathState, bsdf, q: np.ndarray, tally) -> None:
+        """One light sample at every vertex whose BSDF has a non-delta part, weighted against
+        the BSDF strategy (q p_b: roulette folded in); shadow rays for non-zero terms only."""
+        if not self.strategy.nee or self.lights.empty:
+            return
+        m, b, reflects = len(paths), paths.bounces, bsdf.reflects_only  # reflects: every wi on ng's side
+        # A Lambertian closure's black points (emitters) get exact zeros from it: sampling them too
+        # spares gathering every array for the others.
+        smooth = np.ones(m, bool) if reflects else bsdf.has_smooth
+        if self.light_paths.any_transparent:  # a path at its last vertex only passes transparency
+            smooth = smooth & ~b.last
+        if paths.specular is not None:
+            smooth = smooth & ~paths.specular
+        active = np.flatnonzero(smooth)
+        if len(active) == 0:
+            return
+        at = gatherer(active, m)
+        u = sampler.get(1 + _GROUPS * rows_of(paths.depth, active) + _LIGHT, at(paths.idx), 3)
+        ls = self.lights.sample(at(paths.p), u[:, 2], u[:, :2], in_unit=True)
+        f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility)
+        cos_i = np.abs(dot(ls.wi, at(bsdf.ns)))  # ns: may be perturbed (normal maps)
+        pdf_b_mis = at(q) * pdf_b if self.strategy.mis else 0.0
+        w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_b_mis, 1e-300))
+        contrib = at(paths.beta) * f * scale(ls.Le, np.divide(cos_i * w, ls.pdf, out=np.zeros(len(active)),
+                                                               where=ls.valid))
+        # Column by column (an axis-1 reduction is several times slower); negative lights subtract.
+        test = np.flatnonzero((contrib[:, 0] != 0) | (contrib[:, 1] != 0) | (contrib[:, 2] != 0))
+        if len(test) == 0:
+            return
+        rows = active[test]
+        n_off = take(paths.ng, rows) if reflects else towards(take(paths.ng, rows), take(ls.wi, test))
+        blocked = self.visibility.occluded(offset_origin(take(paths.p, rows), n_off), take(ls.target, test),
+                                           paths.prim[rows], ls.target_prim[test])
+        lit = np.flatnonzero(~blocked)
+        rows = rows[lit]
+        c = self._clamp(take(contrib, test[lit]), b.total == 0, rows)
+        _accumulate(L, paths.idx[rows], c)
+        if tally:
+            f_cls = bsdf.eval_by_class(take(ls.wi, test[lit]), rows) if paths.depth == 0 else None
+            tally.light_sample(paths.depth, paths.idx[rows], c, f_cls)
 
+    def _scatter(self, sampler, paths: PathState, bsdf, q: np.ndarray, tally) -> PathState:
+        """One BSDF sample continues each path, Russian roulette (survival q) ends some: the
+        survivors on their next rays, with the MIS state of this bounce (pdf_prev = q p_b)."""
+        m, b, reflects = len(paths), paths.bounces, bsdf.reflects_only
+        base = 1 + _GROUPS * paths.depth  # random groups of this bounce
+        if reflects:  # one lobe: no lane 2 to draw; a Sampler's numbers need no clamp
+            u = sampler.get(base + _BSDF, paths.idx, lanes=(0, 1, 3))
+            bs, u_rr = bsdf.sample(u[:, :2], None, in_unit=True), u[:, 2]
+        else:
+            u = sampler.get(base + _BSDF, paths.idx, 4)
+            bs, u_rr = bsdf.sample(u[:, :2], u[:, 2]), u[:, 3]
+        if tally and paths.depth == 0:
+            tally.first_bounce(paths.idx, bsdf, bs)
+        survive = bs.valid & (u_rr < q)
+        if self.light_paths.any_transparent:  # a path at its last vertex goes on only through transparency
+            survive &= ~b.last | (bs.label == LABEL_TRANSPARENT)
+        beta = paths.beta * scale(bs.weight, np.divide(1.0, q, out=np.zeros(m), where=survive))
+        survive &= max3(beta) > 0
+        keep = np.flatnonzero(survive)
+        paths = paths.leave(keep, take(bs.wi, keep), take(beta, keep), reflects)
+        paths.bounces = paths.bounces.count(bs, keep, self.light_paths.per_label)
+        # Strategy switches: pdf_prev 0 makes emission found after a non-delta bounce weigh 0
+        # ("light" alone); no_mis makes it weigh 1 (after delta bounces, or "bsdf" alone).
+        paths.pdf_prev = (q * bs.pdf)[keep] if self.strategy.bsdf_hits else np.zeros(len(keep))
+        paths.no_mis = bs.delta[keep] | (not self.strategy.nee)
+        return paths
 
-def _rows(x, rows):
-    """x[rows], or x itself when it is one value for all paths."""
-    return x if np.ndim(x) == 0 else x[rows]
+    def _clamp(self, c: np.ndarray, direct, rows=None) -> np.ndarray:
+        """c clamped (Clamp), or c itself with clamping off."""
+        return c if self.clamp is None else self.clamp(c, direct, rows)
+
+    @staticmethod
+    def _add(L, idx, c, tally, depth, escaped=False) -> None:
+        """Emission c (K,3) found by paths idx (K,) into L and the light passes."""
+        _accumulate(L, idx, c)
+        if tally:
+            tally.emitted(depth, idx, c, escaped)
 
 
 class _Refill:
-    """Path regeneration: the camera rays (o64, o32, d, tmax, skip) of an item's n paths,
-    handed out in order to a trace whose live paths are kept near `pool`. (Made all at once:
-    made per refill, the same rays cost 1.4x the CPU time of the whole item, most of it in
-    the kernel, from the heap's new pattern of allocations - bench/results/tail/notes.md.)"""
+    """Path regeneration: the camera rays (a PathState on its first rays) of an item's n
+    paths, handed out in order to a trace whose live paths are kept near `pool`. (Made all at
+    once: made per refill, the same rays cost more than the whole item, most of it in the
+    kernel, from the heap's new pattern of allocations - bench/results/tail/notes.md.)"""
 
-    def __init__(self, o64, o32, d, tmax, skip, pool: int):
-        self.rays = (o64, o32, d, tmax, skip)
-        self.n, self.next, self.pool = len(d), 0, max(int(pool), 1)
+    def __init__(self, rays: PathState, pool: int):
+        self.rays = rays
+        self.n, self.next, self.pool = len(rays), 0, max(int(pool), 1)
 
     @property
     def left(self) -> int:
         return self.n - self.next
 
-    def take(self, k: int) -> tuple:
-        """(o64, o32, d, tmax, skip) of the next k paths (k <= left), rows next .. next + k - 1."""
-        rows = slice(self.next, self.next + k)
+    def take(self, k: int) -> PathState:
+        """The next k paths (k <= left) on their first rays, rows next .. next + k - 1."""
+        rows, r = slice(self.next, self.next + k), self.rays
+        paths = PathState.rays(r.o64[rows], r.o32[rows], r.d[rows], None if r.tmax is None else r.tmax[rows],
+                               r.skip[rows], idx=np.arange(self.next, self.next + k))
         self.next += k
-        return tuple(a[rows] for a in self.rays)
-
-
-_RAY_OF_LABEL = np.array([RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, RAY_CAMERA], np.uint8)  # per LABEL_*
+        return paths
 
 
 class PathIntegrator(Integrator):

@@ -80,11 +80,11 @@ ENVIRONMENT = 6
 WORLD = 7
 
 
-@dataclass
+@dataclass(frozen=True, slots=True)
 class PhotonEmission:
     """N photons leaving the emitters.
 
-    o (N,3) float64 origin; d (N,3) float64 unit direction of travel; flux (N,3) float64 W
+    o (N,3) float64 origin (m); d (N,3) float64 unit direction of travel; flux (N,3) float64 W
     (0 where not valid); light (N,) int64 emitter index; prim (N,) int64 emissive triangle the
     origin lies on (-1 for other emitters: the tracer skips it on the first ray); valid (N,) bool.
     """
@@ -95,6 +95,35 @@ class PhotonEmission:
     light: np.ndarray
     prim: np.ndarray
     valid: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class PhotonRays:
+    """N photons of one group of emitters, before the selection pmf.
+
+    o (N,3) origin (m); d (N,3) unit direction of travel; flux (N,3) Le |cos| / (pdf_pos
+    pdf_dir) (W; 0 where not valid); prim (N,) int64 emissive triangle of the origin, or None
+    for groups that are not triangles.
+    """
+
+    o: np.ndarray
+    d: np.ndarray
+    flux: np.ndarray
+    prim: np.ndarray | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class PhotonPdf:
+    """Densities of N photons (o, d), without the selection pmf.
+
+    pos (N,): area density of o on the emitting surface (1/m^2; 1 for a delta position); for
+    directions-first emitters (point/spot of radius r, sun, environment, world) the density of
+    o given d. dir (N,): solid-angle density of d (1/sr; given o for area lights and triangles;
+    1 for a delta sun).
+    """
+
+    pos: np.ndarray
+    dir: np.ndarray
 
 
 # ----------------------------------------------------------------------------------------------
@@ -270,9 +299,10 @@ class PhotonEmitter:
         light, pmf, u_side = self.select.sample_discrete(u_select)
         prim = np.full(n, -1, np.int64)
         if len(self.groups_present) == 1:  # one kind of emitter (the common case): no scatter
-            o, d, flux, p = self._sample_group(self.groups_present[0], light, u_pos, u_dir, u_side)
-            if p is not None:
-                prim = p
+            rays = self._sample_group(self.groups_present[0], light, u_pos, u_dir, u_side)
+            o, d, flux = rays.o, rays.d, rays.flux
+            if rays.prim is not None:
+                prim = rays.prim
         else:
             o, d, flux = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
             g = self.group[light]
@@ -280,10 +310,10 @@ class PhotonEmitter:
                 rows = np.flatnonzero(g == code)
                 if not len(rows):
                     continue
-                o[rows], d[rows], flux[rows], p = self._sample_group(code, light[rows], u_pos[rows], u_dir[rows],
-                                                                     u_side[rows])
-                if p is not None:
-                    prim[rows] = p
+                rays = self._sample_group(code, light[rows], u_pos[rows], u_dir[rows], u_side[rows])
+                o[rows], d[rows], flux[rows] = rays.o, rays.d, rays.flux
+                if rays.prim is not None:
+                    prim[rows] = rays.prim
         inv_pmf = np.divide(1.0, pmf, out=np.zeros(n), where=pmf > 0)
         for k in range(3):
             flux[:, k] *= inv_pmf
@@ -293,9 +323,8 @@ class PhotonEmitter:
             flux[~valid] = 0.0
         return PhotonEmission(o, d, flux, light, prim, valid)
 
-    def _sample_group(self, code, light, u_pos, u_dir, u_side):
-        """Photons of emitters `light` (N,), all of group `code`: origin (N,3), direction (N,3),
-        Le |cos| / (pdf_pos pdf_dir) (N,3) (0 where invalid), prim (N,) or None."""
+    def _sample_group(self, code, light, u_pos, u_dir, u_side) -> PhotonRays:
+        """Photons of emitters `light` (N,), all of group `code`."""
         ls, an = self.lights, self.lights.lights
         n = len(light)
         i = _one_or_all(light)  # an int when one emitter makes all of them: its rows broadcast
@@ -313,7 +342,7 @@ class PhotonEmitter:
             d = sampling.to_world(local, fx, fy, -fz)
             a = shapes.area(an)[i]
             ok = (local[:, 2] > 0) & (a > 0)
-            return o, d, _colour(take(an.Le, i), np.where(ok, np.pi * a, 0.0)), None
+            return PhotonRays(o, d, _colour(take(an.Le, i), np.where(ok, np.pi * a, 0.0)))
         if code == TRIANGLE:
             t = i - ls.n_analytic
             b = sampling.sample_uniform_triangle(u_pos)
@@ -324,7 +353,7 @@ class PhotonEmitter:
             d = sampling.to_world(local, tb[0], tb[1], nrm)
             a = ls.tri_area[t]
             flux = _colour(take(ls.tri_Le, t), np.where(local[:, 2] > 0, 2.0 * np.pi * a, 0.0))
-            return o, d, flux, np.broadcast_to(ls.tri_prim[t], (n,)).copy()
+            return PhotonRays(o, d, flux, np.broadcast_to(ls.tri_prim[t], (n,)).copy())
         if code in (LIGHT_POINT, LIGHT_SPOT):
             c = take(an.position, i)
             if code == LIGHT_POINT:
@@ -349,7 +378,7 @@ class PhotonEmitter:
                 o = np.empty((n, 3))
                 o[:] = c
             intensity = _colour(take(an.Le, i), np.where(r > 0, np.pi * r * r, 1.0) * att_over_pdf)
-            return o, d, intensity, None
+            return PhotonRays(o, d, intensity)
         # Parallel beams: wi towards the emitter, origin on the disk of radius R behind the scene.
         beam = np.pi * self.radius**2
         if code == LIGHT_SUN:
@@ -361,12 +390,13 @@ class PhotonEmitter:
             solid_angle = np.where(half > 0, 2.0 * np.pi * omc, 1.0)  # 1 / pdf_dir (delta: 1)
             flux = _colour(take(an.Le, i), beam * solid_angle)
         elif code == ENVIRONMENT:
-            wi, Le, pdf, _ = self.env.sample(u_dir)
-            flux = scale(Le, np.divide(beam, pdf, out=np.zeros_like(pdf), where=pdf > 0))
+            e = self.env.sample(u_dir)
+            wi = e.wi
+            flux = scale(e.Le, np.divide(beam, e.pdf, out=np.zeros_like(e.pdf), where=e.pdf > 0))
         else:  # WORLD
             wi = sampling.sample_uniform_sphere(u_dir)
             flux = _colour(self.world_L, np.full(n, beam * 4.0 * np.pi))
-        return self._disk_origin(wi, u_pos), -wi, flux, None
+        return PhotonRays(self._disk_origin(wi, u_pos), -wi, flux)
 
     def _disk_origin(self, wi, u_pos):
         """Points (N,3) uniform on the disk of radius R perpendicular to wi, centred R from the
@@ -383,22 +413,17 @@ class PhotonEmitter:
         return np.divide(att, 2.0 * np.pi * mass, out=np.zeros_like(att), where=mass > 0)
 
     # ---- densities ---------------------------------------------------------------------------
-    def pdf(self, light, o, d):
-        """Densities of photons (o, d) (N,3) from emitters `light` (N,), without the selection pmf.
-
-        pdf_pos (N,): area density of o on the emitting surface (1 for a delta position); for
-        directions-first emitters (point/spot of radius r, sun, environment, world) the density
-        of o given d. pdf_dir (N,): solid-angle density of d (given o for area lights and
-        triangles; 1 for a delta sun). o is assumed to lie on the emitter's support (as
-        `sample` puts it); only the direction is checked against the emitter.
-        """
+    def pdf(self, light, o, d) -> PhotonPdf:
+        """Densities of photons (o, d) (N,3) from emitters `light` (N,). o is assumed to lie on
+        the emitter's support (as `sample` puts it); only the direction is checked against the
+        emitter."""
         light = np.asarray(light, np.int64)
         o = np.asarray(o, np.float64)
         d = np.asarray(d, np.float64)
         n = len(light)
         pdf_pos, pdf_dir = np.zeros(n), np.zeros(n)
         if self.empty:
-            return pdf_pos, pdf_dir
+            return PhotonPdf(pdf_pos, pdf_dir)
         ls, an = self.lights, self.lights.lights
         g = self.group[light]
         disk = 1.0 / (np.pi * self.radius**2)
@@ -434,4 +459,4 @@ class PhotonEmitter:
             else:
                 pdf_dir[rows] = 0.25 / np.pi
                 pdf_pos[rows] = disk
-        return pdf_pos, pdf_dir
+        return PhotonPdf(pdf_pos, pdf_dir)

@@ -43,6 +43,8 @@ Mitsuba 0.6 src/emitters/envmap.cpp.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .. import sampling
@@ -52,6 +54,22 @@ from ..textures import LUMINANCE  # Cycles' rgb_to_y weights (Rec. 709)
 
 _BALL_SUBSAMPLES = 8  # per axis, to estimate how much of a mirror-ball pixel lies in the ball
 _BALL_MIN_FRACTION = 1e-3  # a pixel that touches the ball is never given weight 0
+
+
+@dataclass(frozen=True, slots=True)
+class EnvironmentSample:
+    """N directions drawn from an environment map.
+
+    wi (N,3) unit world direction towards the environment; Le (N,3) radiance arriving along
+    -wi (W/(m^2 sr)), 0 where not valid; pdf (N,) solid-angle pdf of wi (1/sr), 0 where not
+    valid; valid (N,) bool, False where the pdf is 0 or not finite: mirror-ball samples drawn
+    in a pixel's corner outside the ball.
+    """
+
+    wi: np.ndarray
+    Le: np.ndarray
+    pdf: np.ndarray
+    valid: np.ndarray
 
 
 def _as_image(image) -> np.ndarray:
@@ -176,12 +194,8 @@ class EnvironmentMap:
             return p_uv * self._pdf_from_uv[row]
         return p_uv / 16.0
 
-    def sample(self, u):
-        """Directions from u (N, 2) in [0, 1)^2.
-
-        Returns wi (N, 3) unit world directions, Le (N, 3) radiance from wi, pdf (N,) solid-angle
-        pdf (0 where invalid), valid (N,) bool (False only for mirror-ball corner samples).
-        """
+    def sample(self, u) -> EnvironmentSample:
+        """Directions from u (N, 2) in [0, 1)^2."""
         H, W = self.shape
         uv, p_uv, (row, col) = self.table.sample(u)
         x = uv[:, 0]
@@ -213,7 +227,7 @@ class EnvironmentMap:
             pdf = pdf * self._abs_det * n**3  # |A d| = 1 / |A^-1 e| for d = A^-1 e / |A^-1 e|
         Le = self.image[row, col].astype(np.float64) * self.scale
         valid &= (pdf > 0) & np.isfinite(pdf)
-        return wi, np.where(valid[:, None], Le, 0.0), np.where(valid, pdf, 0.0), valid
+        return EnvironmentSample(wi, np.where(valid[:, None], Le, 0.0), np.where(valid, pdf, 0.0), valid)
 
     @property
     def nbytes(self) -> int:

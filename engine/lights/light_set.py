@@ -35,10 +35,8 @@ from ..vec import max3, scale, take
 from . import environment, light_tree, shapes
 
 # From this many finite lights on, a light tree chooses them (below: power alone, as the seed
-# says). Measured in bench/many_lights.py (README "Many lights"): at equal time the tree wins
-# from 8 point lights on and from 16-32 emissive squares on (single runs: 8 squares lost 2.9x,
-# 64 lost 1.14x, 16, 32, 128 and 1000 won 1.25x-4x); below that its cost per shading point
-# (1.2-1.7x the render time) is not repaid.
+# says): below it the tree's cost per shading point is not reliably repaid at equal time
+# (measured in bench/results/many_lights/report.md).
 TREE_MIN_LIGHTS = 32
 # ... and only when the lights spread over at least this share of the scene's bounding radius:
 # lights clustered far from most receivers (a chandelier, an emissive sphere of many triangles)
@@ -52,27 +50,30 @@ def avg(c: np.ndarray) -> np.ndarray:
     return np.asarray(c, np.float64).mean(axis=-1)
 
 
-@dataclass
+@dataclass(frozen=True, slots=True)
 class LightSample:
-    """Light samples for N shading points.
+    """One light sample for each of N shading points p.
 
-    wi (N,3) unit direction to the light; Le (N,3) radiance arriving along -wi (for delta
-    lights: intensity / d^2 or irradiance); pdf (N,) solid-angle pdf times the selection pmf
-    (for delta lights the pmf alone); delta (N,) bool; shadow_d (N,3) and shadow_tfar (N,):
-    the occlusion segment o + t shadow_d, t < shadow_tfar, to be traced from the offset origin.
-    valid (N,) bool (False where nothing can be sampled: pdf 0).
+    wi (N,3) unit direction from p to the light; Le (N,3) radiance arriving along -wi
+    (W/(m^2 sr); delta lights: the irradiance at normal incidence, W/m^2); pdf (N,) solid-angle
+    pdf (1/sr) times the selection pmf, for delta lights the pmf alone, 0 where not valid;
+    delta (N,) bool; target (N,3) the point sampled on the light (m), p + wi 1e30 for the
+    infinitely far ones (suns, environment); target_prim (N,) int64 emissive triangle the
+    target lies on, -1 for other lights; finite (N,) bool, False where target stands for
+    infinity (the occlusion test of p -> target then runs to infinity); valid (N,) bool, False
+    where nothing can be sampled (pdf 0 or radiance 0); visibility (N,) uint8 RAY_* bits of the
+    lights sampled (which lobes they light), None when every light lights all lobes.
     """
 
     wi: np.ndarray
     Le: np.ndarray
     pdf: np.ndarray
     delta: np.ndarray
-    target: np.ndarray  # (N,3) point on the light; inf-far lights: p + wi * 1e30
-    target_prim: np.ndarray  # (N,) emissive triangle the target lies on, -1 for other lights
-    finite: np.ndarray  # (N,) bool
+    target: np.ndarray
+    target_prim: np.ndarray
+    finite: np.ndarray
     valid: np.ndarray
-    # (N,) uint8 RAY_* bits of the lights sampled (which lobes they light), None: all lobes.
-    visibility: np.ndarray = None
+    visibility: np.ndarray | None = None
 
 
 class LightSet:
@@ -239,9 +240,10 @@ class LightSet:
         if self.tree is None and self.n_analytic == 0 and self.env is None:
             return self._sample_triangles(p, u_select, u, in_unit)
         index, pmf = self._choose(p, np.asarray(u_select, np.float64))
-        out = {}  # field -> (N,...) array; every row belongs to exactly one kind of light
+        out = {}  # ShapeSample field -> (N,...) array; every row belongs to exactly one kind of light
 
-        def put(rows, **values):
+        def put(rows, sample: shapes.ShapeSample):
+            values = dict(wi=sample.wi, Le=sample.Le, pdf=sample.pdf, target=sample.target, finite=sample.finite)
             if len(rows) == n:  # one kind for all rows (the common case): no scatter
                 out.update(values)
                 return
@@ -261,22 +263,20 @@ class LightSet:
         is_env = np.False_ if only_triangles else index == self.env_index
         if is_env.any():
             rows, r = rows_of(is_env)
-            wi, Le, pdf_dir, _ = self.env.sample(u[r])
-            put(rows, wi=wi, Le=Le, pdf_dir=pdf_dir, target=p[r] + wi * 1e30, finite=np.zeros(len(rows), bool))
+            e = self.env.sample(u[r])
+            put(rows, shapes.ShapeSample(e.wi, e.Le, e.pdf, p[r] + e.wi * 1e30, np.zeros(len(rows), bool)))
         target_prim = np.full(n, -1, np.int64)
         if is_tri.any():
             rows, r = rows_of(is_tri)
             t = index[r] - self.n_analytic
-            wi, pdf_dir, target = self._triangle_sample(p[r], t, u[r])
-            put(rows, wi=wi, Le=take(self.tri_Le, t), pdf_dir=pdf_dir, target=target, finite=np.ones(len(rows), bool))
+            put(rows, self._triangle_sample(p[r], t, u[r]))
             target_prim[r] = self.tri_prim[t]
         for kind in self.kinds_present:
             rows, r = rows_of((index < self.n_analytic)
                               & (self.lights.kind[np.minimum(index, max(self.n_analytic - 1, 0))] == kind))
             if len(rows):
-                wi, Le, pdf_dir, target, finite = shapes.sample_analytic(kind, self.lights, index[r], p[r], u[r])
-                put(rows, wi=wi, Le=Le, pdf_dir=pdf_dir, target=target, finite=finite)
-        wi, Le, pdf_dir, target, finite = (out[k] for k in ("wi", "Le", "pdf_dir", "target", "finite"))
+                put(rows, shapes.sample_analytic(kind, self.lights, index[r], p[r], u[r]))
+        wi, Le, pdf_dir, target, finite = (out[k] for k in ("wi", "Le", "pdf", "target", "finite"))
         delta = self.delta[index]
         pdf = np.where(delta, pmf, pmf * pdf_dir)
         valid = (pdf > 0) & np.isfinite(pdf) & (max3(np.abs(Le)) > 0)  # negative lights count
@@ -290,20 +290,21 @@ class LightSet:
         n = len(p)
         index = self.select.sample_index(np.asarray(u_select, np.float64))
         pmf = self.select.pmf(index)
-        wi, pdf_dir, target = self._triangle_sample(p, index, u, in_unit)
-        pdf = pmf * pdf_dir  # no delta lights among triangles
+        t = self._triangle_sample(p, index, u, in_unit)
+        pdf = pmf * t.pdf  # no delta lights among triangles
         valid = (pdf > 0) & np.isfinite(pdf) & self.tri_lit[index]
-        return LightSample(wi=wi, Le=take(self.tri_Le, index), pdf=np.where(valid, pdf, 0.0), delta=np.zeros(n, bool),
-                           target=target, target_prim=self.tri_prim[index], finite=np.ones(n, bool), valid=valid,
+        return LightSample(wi=t.wi, Le=t.Le, pdf=np.where(valid, pdf, 0.0), delta=np.zeros(n, bool), target=t.target,
+                           target_prim=self.tri_prim[index], finite=t.finite, valid=valid,
                            visibility=None if self.nee_visibility is None else self.nee_visibility[index])
 
-    def _triangle_sample(self, p: np.ndarray, t: np.ndarray, u: np.ndarray, in_unit=False):
-        """(wi, solid-angle pdf, target) of a uniform point on emissive triangles t (N,) seen
-        from p (N,3): one gather of each triangle's row."""
+    def _triangle_sample(self, p: np.ndarray, t: np.ndarray, u: np.ndarray, in_unit=False) -> shapes.ShapeSample:
+        """A uniform point on each of the emissive triangles t (N,) seen from p (N,3) (one gather
+        of each triangle's row); in_unit as `sample`."""
         b = sampling.sample_uniform_triangle(u, in_unit)
         row = take(self.tri_rows, t)
         y = row[:, 0:3] + scale(row[:, 3:6], b[:, 1]) + scale(row[:, 6:9], b[:, 2])
-        return shapes.area_to_solid_angle(p, y, row[:, 9:12], row[:, 12], two_sided=True)
+        wi, pdf = shapes.area_to_solid_angle(p, y, row[:, 9:12], row[:, 12], two_sided=True)
+        return shapes.ShapeSample(wi, take(self.tri_Le, t), pdf, y, np.ones(len(t), bool))
 
     # ---- emission found by rays (BSDF sampling or camera rays) -----------------------------
     def pdf_triangle_hit(self, prim: np.ndarray, p_prev: np.ndarray, t: np.ndarray, cos_light: np.ndarray):
@@ -324,8 +325,8 @@ class LightSet:
         total = np.zeros((len(o), 3))
         lights = self.lights
         for i in self.hittable.tolist():
-            hit, gain, pdf_dir = shapes.hit_analytic(int(lights.kind[i]), lights, i, o, d, tmax)
-            self._add_weighted(total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera, kind, o)
+            h = shapes.hit_analytic(int(lights.kind[i]), lights, i, o, d, tmax)
+            self._add_weighted(total, i, h, pdf_bsdf, use_mis, camera, kind, o)
         return total
 
     def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray,
@@ -336,8 +337,7 @@ class LightSet:
         see only what is visible to their kind."""
         total = np.zeros((len(d), 3))
         for i in self.suns.tolist():
-            hit, gain, pdf_dir = shapes.sun_hit(self.lights, i, d)
-            self._add_weighted(total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera, kind)
+            self._add_weighted(total, i, shapes.sun_hit(self.lights, i, d), pdf_bsdf, use_mis, camera, kind)
         seen = ~camera | self.world_visible
         if kind is not None and self.partial_visibility:
             seen = seen & ((kind & self.world_visibility) != 0)
@@ -352,9 +352,10 @@ class LightSet:
             total += np.where(seen[:, None], self.world, 0.0)
         return total
 
-    def _add_weighted(self, total, i, hit, gain, pdf_dir, pdf_bsdf, use_mis, camera, kind=None, o=None):
-        """total += gain x Le[i] x MIS weight on the rays that hit light i (from origins o,
+    def _add_weighted(self, total, i, h: shapes.LightHit, pdf_bsdf, use_mis, camera, kind=None, o=None):
+        """total += gain x Le[i] x MIS weight on the rays that hit light i (h; from origins o,
         (N,3); None for infinite lights)."""
+        hit = h.hit
         if not self.lights.visible[i]:
             hit = hit & ~camera
         if kind is not None and self.partial_visibility:
@@ -367,8 +368,8 @@ class LightSet:
             pmf = np.zeros(len(hit))
             r = np.flatnonzero(hit)
             pmf[r] = self.pmf(np.full(len(r), i), o[r])
-        pdf_light = pmf * pdf_dir
+        pdf_light = pmf * h.pdf
         w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
-        a = np.where(hit, gain * w, 0.0)
+        a = np.where(hit, h.gain * w, 0.0)
         for k in range(3):
             total[:, k] += a * self.lights.Le[i, k]

@@ -11,6 +11,8 @@ smoothstep((cos - cos_half) / smooth) of the direction from the light to the lit
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..vec import dot, minus_point, scale, take
@@ -18,6 +20,38 @@ from ..vec import dot, minus_point, scale, take
 from .. import sampling
 from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, Lights
 
+
+@dataclass(frozen=True, slots=True)
+class ShapeSample:
+    """Points sampled on lights as seen from N shading points p.
+
+    wi (N,3) unit direction from p towards the point; Le (N,3) radiance arriving at p along -wi
+    (W/(m^2 sr)), spots' attenuation included; for delta lights the irradiance at normal
+    incidence instead (W/m^2: intensity / d^2 for points and spots, Le for a sun of angle 0); pdf (N,) solid-angle pdf of wi (1/sr),
+    without the selection pmf: 1 for delta lights, 0 where nothing can be sampled (p inside a
+    sphere); target (N,3) the sampled point (m), p + wi 1e30 for suns; finite (N,) bool, False
+    for suns (their target stands for infinity).
+    """
+
+    wi: np.ndarray
+    Le: np.ndarray
+    pdf: np.ndarray
+    target: np.ndarray
+    finite: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class LightHit:
+    """N rays tested against one light.
+
+    hit (N,) bool; gain (N,) radiance factor: the radiance is gain x Le of the light (the spot
+    attenuation, else 1); pdf (N,) solid-angle pdf (1/sr) with which next-event estimation
+    from the ray's origin samples that direction, without the selection pmf.
+    """
+
+    hit: np.ndarray
+    gain: np.ndarray
+    pdf: np.ndarray
 
 
 def _avg(c):
@@ -65,7 +99,9 @@ def spot_attenuation(lights: Lights, i, w_from_light):
 
 
 def area_to_solid_angle(p, y, n_light, area_light, two_sided):
-    """Direction p->y and the solid-angle pdf of uniform area sampling (1/area)."""
+    """(wi, pdf): unit directions p -> y (N,3) and the solid-angle pdf (N,) (1/sr) of points y
+    drawn uniformly over a light of area area_light (m^2) with normals n_light (N,3); 0 where
+    y is seen edge-on or from behind a one-sided light."""
     v = y - p
     d2 = dot(v, v)
     d = np.sqrt(d2)
@@ -75,12 +111,11 @@ def area_to_solid_angle(p, y, n_light, area_light, two_sided):
         cos_l = np.abs(cos_l)
     denom = area_light * cos_l
     pdf = np.divide(d2, denom, out=np.zeros_like(d2), where=denom > 0)
-    return wi, np.where(np.isfinite(pdf), pdf, 0.0), y
+    return wi, np.where(np.isfinite(pdf), pdf, 0.0)
 
 
-def sample_analytic(kind, lights: Lights, idx, p, u):
-    """Sample lights idx (all of `kind`) from points p (N,3).
-    Returns wi, Le, pdf_dir (solid angle; 1 for delta lights), target, finite."""
+def sample_analytic(kind, lights: Lights, idx, p, u) -> ShapeSample:
+    """Sample lights idx (N,) (all of `kind`) from points p (N,3) with uniforms u (N,2)."""
     n = len(p)
     c = take(lights.position, idx)
     frame = take(lights.frame, idx)
@@ -94,11 +129,12 @@ def sample_analytic(kind, lights: Lights, idx, p, u):
         t_axis, b_axis = sampling.frame_from_z(to_c)
         soft = lights.soft[idx] & (r > 0)
 
-        def disk(rows):  # soft: uniform by area on the disk through c facing p
+        def disk(rows):  # soft: uniform by area on the disk through c facing p; (wi, pdf, point)
             xy = sampling.sample_concentric_disk(u[rows])
             rr = r[rows]
             y = c[rows] + scale(t_axis[rows], xy[:, 0] * rr) + scale(b_axis[rows], xy[:, 1] * rr)
-            return area_to_solid_angle(p[rows], y, -to_c[rows], np.pi * rr * rr, two_sided=False)
+            wi, pdf = area_to_solid_angle(p[rows], y, -to_c[rows], np.pi * rr * rr, two_sided=False)
+            return wi, pdf, y
 
         if soft.all():
             wi, pdf_dir, target = disk(slice(None))
@@ -117,7 +153,7 @@ def sample_analytic(kind, lights: Lights, idx, p, u):
         Le = scale(take(lights.Le, idx), np.where(r > 0, 1.0, 1.0 / np.maximum(d2, 1e-300)))
         if kind == LIGHT_SPOT:
             Le = scale(Le, spot_attenuation(lights, idx, -wi))
-        return wi, Le, pdf_dir, target, finite
+        return ShapeSample(wi, Le, pdf_dir, target, finite)
     if kind == LIGHT_SUN:
         z = frame[:, 2]
         half = lights.sun_half_angle[idx]
@@ -126,7 +162,7 @@ def sample_analytic(kind, lights: Lights, idx, p, u):
         wi = np.where((half > 0)[:, None], sampling.to_world(local, t_axis, b_axis, z), z)
         pdf_dir = np.where(half > 0, np.divide(1.0, 2.0 * np.pi * omc_max, out=np.zeros(n), where=omc_max > 0), 1.0)
         finite[:] = False
-        return wi, lights.Le[idx].copy(), pdf_dir, p + wi * 1e30, finite
+        return ShapeSample(wi, lights.Le[idx].copy(), pdf_dir, p + wi * 1e30, finite)
     # Rect and disk: uniform by area, one-sided along -z.
     hx, hy = lights.size[idx, 0], lights.size[idx, 1]
     if kind == LIGHT_RECT:
@@ -135,14 +171,12 @@ def sample_analytic(kind, lights: Lights, idx, p, u):
         xy = sampling.sample_concentric_disk(u) * np.stack([hx, hy], axis=1)
     y = c + xy[:, :1] * frame[:, 0] + xy[:, 1:2] * frame[:, 1]
     a = np.where(kind == LIGHT_RECT, 4.0 * hx * hy, np.pi * hx * hy)
-    wi, pdf_dir, target = area_to_solid_angle(p, y, -frame[:, 2], a, two_sided=False)
-    return wi, lights.Le[idx].copy(), pdf_dir, target, finite
+    wi, pdf_dir = area_to_solid_angle(p, y, -frame[:, 2], a, two_sided=False)
+    return ShapeSample(wi, lights.Le[idx].copy(), pdf_dir, y, finite)
 
 
-def hit_analytic(kind, lights: Lights, i: int, o, d, tmax):
-    """Rays o + t d (N) against analytic light i, 0 < t < tmax.
-    Returns hit (N,) bool, gain (N,) (the radiance is gain x Le[i]: spot attenuation, else 1)
-    and pdf_dir (N,), the solid-angle pdf of sampling that point."""
+def hit_analytic(kind, lights: Lights, i: int, o, d, tmax) -> LightHit:
+    """Rays o + t d (o, d (N,3), d unit) against analytic light i (of `kind`), 0 < t < tmax (N,)."""
     n = len(o)
     c = lights.position[i]
     frame = lights.frame[i]
@@ -169,7 +203,7 @@ def hit_analytic(kind, lights: Lights, i: int, o, d, tmax):
             pdf_dir = np.divide(1.0, 2.0 * np.pi * omc, out=np.zeros(n), where=omc > 0)
         if kind == LIGHT_SPOT:
             gain = spot_attenuation(lights, i, -d)  # from the light towards o
-        return hit, gain, pdf_dir
+        return LightHit(hit, gain, pdf_dir)
     z = frame[2]
     dz = d @ z
     t = np.divide(-(f @ z), dz, out=np.full(n, -1.0), where=dz != 0)
@@ -185,17 +219,17 @@ def hit_analytic(kind, lights: Lights, i: int, o, d, tmax):
     # The emitting face looks along -z: a ray meets it travelling towards +z.
     hit = inside & (dz > 0) & (t > 0) & (t < tmax)
     pdf_dir = np.divide(t * t, a * dz, out=np.zeros(n), where=(dz > 0) & (a > 0))
-    return hit, gain, pdf_dir
+    return LightHit(hit, gain, pdf_dir)
 
 
-def sun_hit(lights: Lights, i: int, d):
-    """Escaped directions d (N,3) inside sun i's cone: hit, gain (1), pdf_dir (as hit_analytic)."""
+def sun_hit(lights: Lights, i: int, d) -> LightHit:
+    """Escaped directions d (N,3) against sun i's cone (gain 1; a sun of angle 0 is never hit)."""
     half = lights.sun_half_angle[i]
     n = len(d)
     if half <= 0:
-        return np.zeros(n, bool), np.zeros((n, 3)), np.zeros(n)
+        return LightHit(np.zeros(n, bool), np.ones(n), np.zeros(n))
     omc = one_minus_cos(half)
     # 1 - cos(angle to the axis) compared without cancellation via the chord length.
     chord2 = dot(d - lights.frame[i, 2], d - lights.frame[i, 2])
     hit = 0.5 * chord2 <= omc
-    return hit, np.ones(n), np.full(n, 1.0 / (2.0 * np.pi * omc))
+    return LightHit(hit, np.ones(n), np.full(n, 1.0 / (2.0 * np.pi * omc)))

@@ -9,7 +9,7 @@ tracer.py, workers): an anchor that no longer matches is reported as such, not a
 REFERENCE = ["tests/test_reference.py"]
 
 MUTATIONS = [
-    # --- the issue's list ------------------------------------------------------------------
+    # --- the list the suite was first asked to catch -----------------------------------------
     dict(name="image_scale_1.03",
          note="every pixel 3 % too bright (film mean)",
          file="engine/film.py",
@@ -31,7 +31,7 @@ MUTATIONS = [
     dict(name="diffuse_uniform_with_cosine_pdf",
          note="the diffuse lobe draws uniform hemisphere directions; its pdf stays cos / pi",
          file="engine/bsdf/diffuse.py",
-         old="return sampling.sample_cosine_hemisphere(u)",
+         old="return sampling.sample_cosine_hemisphere(u, in_unit)",
          new="return sampling.sample_uniform_hemisphere(u)",
          tests=["tests/test_sampler_directions.py", "tests/test_path_analytic.py"]),
     dict(name="mixture_pdf_weight",
@@ -246,6 +246,25 @@ MUTATIONS = [
          old="h = mix(seed, frame & 0xFFFFFFFF)",
          new="h = mix(seed, 0)",
          tests=["tests/test_sampling_controls.py", "tests/test_sampling_blender.py"]),
+    # --- the lobe table ----------------------------------------------------------------------
+    dict(name="lobe_ggx_eval_pdf_1.03",
+         note="the GGX lobe's eval reports its pdf 3 % too high",
+         file="engine/bsdf/lobes/microfacet.py",
+         old="return microfacet.eval_reflection(p.alpha, wo, wi, F), microfacet.pdf_reflection(p.alpha, wo, wi)",
+         new="return microfacet.eval_reflection(p.alpha, wo, wi, F), 1.03 * microfacet.pdf_reflection(p.alpha, wo, wi)",
+         tests=["tests/test_lobes.py", "tests/test_sampler_directions.py"]),
+    dict(name="lobe_glass_pdf_1.03",
+         note="the glass lobe's pdf (not its eval) 3 % too high",
+         file="engine/bsdf/lobes/dielectric.py",
+         old="return np.where(wo[:, 2] > 0, dielectric.pdf_rough(p.alpha, p.ior, wo * out, wi * out), 0.0)",
+         new="return 1.03 * np.where(wo[:, 2] > 0, dielectric.pdf_rough(p.alpha, p.ior, wo * out, wi * out), 0.0)",
+         tests=["tests/test_lobes.py"]),
+    dict(name="henyey_greenstein_1.03",
+         note="the Henyey-Greenstein phase function 3 % too high",
+         file="engine/bsdf/lobes/henyey_greenstein.py",
+         old="return (1.0 - g * g) / (4.0 * np.pi * t * np.sqrt(t))",
+         new="return 1.03 * (1.0 - g * g) / (4.0 * np.pi * t * np.sqrt(t))",
+         tests=["tests/test_phase_functions.py"]),
     # --- procedural textures (engine/nodes/hash.py, noise.py, textures.py) -------------------
     dict(name="lookup3_final_rotation",
          note="lookup3's final rotates by 15 where Jenkins rotates by 14",

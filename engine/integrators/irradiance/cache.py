@@ -40,10 +40,11 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
+from ...settings import DECLARED
 from .hemisphere import extrapolate
 from .octree import BallOctree, as_points
 
-WEIGHTS = ("ward", "tabellion")
+WEIGHTS = DECLARED["icache_weight"].values
 WARD_EPS_MIN = 1e-3                                   # Ward weight <= 1e3 (Radiance)
 FRONT_TOLERANCE = 0.05                                # of the support a R_i; see above
 SQRT_1_MINUS_COS_10 = float(np.sqrt(1.0 - np.cos(np.radians(10.0))))   # 0.12326

@@ -20,10 +20,9 @@ Truncation (Ramamoorthi and Hanrahan 2002, "Frequency space environment map rend
 SH coefficients of a Phong lobe cos^s fall as about exp(-l^2 / (2 s)) with the band l. Keeping
 bands l < n, the first band dropped has weight exp(-n^2 / (2 s)); requiring it <= e^-2 gives
 s <= n^2 / 4, the sharpest lobe `max_phong_exponent(n)` the basis serves. (e^-1, s <= n^2 / 2,
-was measured too loose: on the rough box of tests/test_radiance_cache.py, a floor at that
-threshold was 6.6 % dark at order 5 and 2.6 % bright at order 7, while at n^2 / 4 order 7 is
-within 0.6 %. The clamped cosine's horizon adds its own slowly decaying bands, so even wide
-lobes need n >= 6: at roughness 0.75 orders 4-8 gave +4.3, -2.8, -1.0, -0.2, -0.4 %.)
+proved too loose: on the rough box of tests/test_radiance_cache.py a floor at that threshold
+came out visibly too dark or too bright. The clamped cosine's horizon adds its own slowly
+decaying bands, so even wide lobes need n >= 6. Measured in bench/results/icache/code_choices.md.)
 """
 import numpy as np
 

@@ -26,15 +26,13 @@ each record and channel one 3-vector, in the record's local frame unless convert
 The rotational gradient is in W m^-2 per radian, the translational one in W m^-2 per unit
 length.
 
-Accuracy (measured in tests/test_irradiance_records.py against closed forms; RMS relative error
-per record, 8x16 / 14x28 / 32x64 / 64x128): both gradients are biased low on a finite grid and
-converge as M, N grow. Rotational, bright cap away from the horizon: 0.10 / 0.041 / 0.014 /
-0.005; light reaching the horizon: 0.21 / 0.15 / 0.096 / 0.068 (tan(theta_j) at the row centre
-underweights the last row, about -0.55 / sqrt(M)). Translational, emitting disk (c = 0.5,
-a = 0.6, d = 1): 0.34 / 0.22 / 0.093 / 0.027, straight edge: 0.050 / 0.028 / 0.011 / 0.005; an
-edge near the normal is the worst case (0.89 / 0.62 / 0.27 / 0.079), because an edge between two
-row boundaries is weighted by sin(theta) interpolated linearly in sin^2(theta), which undershoots
-the concave sqrt near theta = 0.
+Accuracy (tests/test_irradiance_records.py checks it against closed forms; the errors per grid
+size are in bench/results/icache/code_choices.md): both gradients are biased low on a finite
+grid and converge as M, N grow. The rotational gradient converges slowest for light reaching
+the horizon (tan(theta_j) at the row centre underweights the last row, about -0.55 / sqrt(M)).
+For the translational gradient an edge near the normal is the worst case, because an edge
+between two row boundaries is weighted by sin(theta) interpolated linearly in sin^2(theta),
+which undershoots the concave sqrt near theta = 0.
 
 Sources (formulas read, code written here): G. Ward, F. Rubinstein, R. Clear, "A Ray Tracing
 Solution for Diffuse Interreflection", SIGGRAPH 1988 (records, harmonic-mean radius);

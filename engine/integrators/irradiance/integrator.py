@@ -21,9 +21,9 @@ the global photon map (the seed's combination, `icache_gather`). Rounds of stage
             irradiance; a point no record covers is final-gathered and becomes a candidate
             for the records round before the next block.
 
-Measured on the interior and the Cornell box (README), path-traced gathers cost about half
-of photon-map gathers per record here (a k-nearest lookup per gather hit dominates those) and
-are unbiased, where the photon map is starved (sunlight through a window: -2.3 %).
+Path-traced gathers are the default: per record they cost less than photon-map gathers (a
+k-nearest lookup per gather hit dominates those) and are unbiased, where a starved photon map
+(sunlight through a window) darkens the image (measured in bench/results/icache/notes.md).
 
 Records are placed from the points of whole passes, in an order fixed by the points' sample
 indices, and each record's gather rays are numbered by the record and its level: the record
@@ -49,6 +49,8 @@ from ...sampling import frame_from_z, to_world
 from ...vec import dot, gatherer, take
 from ..base import Stage
 from ..path import PathTracer
+from ..path_options import Gather
+from ..path_state import PathState
 from ..photon.integrator import PhotonIntegrator, _accumulate, _sample_rows
 from ..surface import towards
 from .cache import RecordOctree, Records, neighbour_clamp, spread_subset
@@ -56,8 +58,6 @@ from .hemisphere import cell_directions, gradient_to_world, record_terms
 from . import radiance
 from ...layout import BatchLayout
 
-GATHER_MODES = ("photon", "path")
-ICACHE_VIEWS = ("full", "records", "indirect")
 # The support a R_i of a record, in pixel footprints at the record (Krivanek and Gautron's
 # screen-space clamp; Mitsuba 0.6 uses 3 and 20 on R_i with a weight whose support is R_i)...
 MIN_PX, MAX_PX = 3.0, 20.0
@@ -69,9 +69,9 @@ MIN_RECORD_ITEMS = 4  # work items a records round is cut into at least (two per
 MAX_ROUNDS = 12  # records rounds per placement; points still uncovered are final-gathered
 MAX_BLOCK = 16  # passes per pixels stage (records placed between blocks)
 # Refinement: before the passes [P, ...) every record holds at least 1 + P // PASSES_PER_LEVEL
-# sets of M x N gather rays. Its error then falls with the passes, as the pixels' does; a set
-# of rays for every record costs about 6-8 passes (interior, Cornell box), so the records take
-# about a third of a long render (the measured optimum: a set every 11-19 passes).
+# sets of M x N gather rays. Its error then falls with the passes, as the pixels' does; the
+# interval balances the records' noise against the pixels' at the records' cost
+# (bench/results/icache/notes.md, "Refinement").
 PASSES_PER_LEVEL = 16
 DIRECT_SAMPLES = 4  # light samples (and as many BSDF samples) per camera sample at a cached point
 DOT_PX = 1.5  # the record view: a record shows as a dot this many pixel footprints wide
@@ -127,8 +127,8 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         if self.n_global_items + self.n_caustic_items:
             # No radiance photons: a record's gather rays read the full estimate. The nearest
             # radiance photon's E is biased low where photons are stratified and sparse (it
-            # cannot count itself, and its neighbours keep their distance): -3.4 % on the
-            # interior against -1.5 % for the full estimate, and records need few lookups.
+            # cannot count itself, and its neighbours keep their distance), more than the full
+            # estimate (bench/results/icache/code_choices.md), and records need few lookups.
             yield [Stage("photons", self.n_global_items + self.n_caustic_items, publish=True)]
         n = self.layout.n_pixels
         probe = self.pixel_stage(0, n)
@@ -330,10 +330,11 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         g = np.flatnonzero(bs.valid)
         d = take(bs.wi, g)
         o64 = take(p, rest[rep][g])
-        Lg = self.path_tracer.trace(rng.Sampler(s.seed, pix[g], smp[g], s.pattern, domain=rng.GATHER), o64,
-                                    offset_origin(o64, towards(take(ng_f, rest[rep][g]), d)), d, None,
-                                    prim[rest[rep][g]], first_emission=False, max_depth=max(s.max_depth - 1, 0),
-                                    caustic_ends=self._caustic_ends())
+        rays = PathState.rays(o64, offset_origin(o64, towards(take(ng_f, rest[rep][g]), d)), d, None,
+                              prim[rest[rep][g]])
+        Lg = self.path_tracer.trace(rng.Sampler(s.seed, pix[g], smp[g], s.pattern, domain=rng.GATHER), rays,
+                                    Gather(first_emission=False, max_depth=max(s.max_depth - 1, 0),
+                                           caustic_ends=self._caustic_ends()))
         _accumulate(L, rows[rep][g], take(bx, rep[g]) * take(bs.weight, g) * Lg / G)
 
     def _caustic_ends(self):
@@ -462,11 +463,11 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         if stop is not None and stop.is_set():
             raise Cancelled()
         if s.icache_gather == "path":
-            Lr = self.path_tracer.trace(sampler, o64, o32, d, None, skip, stop, first_emission=False,
-                                        max_depth=max(s.max_depth - 1, 0), t_first=t_first,
-                                        caustic_ends=self._caustic_ends())
+            Lr = self.path_tracer.trace(sampler, PathState.rays(o64, o32, d, None, skip),
+                                        Gather(first_emission=False, max_depth=max(s.max_depth - 1, 0),
+                                               caustic_ends=self._caustic_ends(), t_first=t_first), stop)
         else:
-            Lr = self._trace_gather(sampler, K * MN, np.arange(K * MN), np.ones((K * MN, 3)), d, o64, o32, skip,
+            Lr = self._trace_gather(sampler, K * MN, PathState.rays(o64, o32, d, None, skip, beta=np.ones((K * MN, 3))),
                                     t_first=t_first)
         E, R, grad_r, grad_t = record_terms(Lr.reshape(K, M, N, 3), t_first.reshape(K, M, N))
         coeffs = {}

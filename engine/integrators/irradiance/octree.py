@@ -12,7 +12,7 @@ all points at once:
   spans at most 2 cells per axis) and is stored in every cell of that level its box meets
   (at most 8). Balls smaller than the finest level (MAX_LEVEL) share its cells.
 - A cell is keyed by (level, ix, iy, iz) packed into one int64; the keys of all stored
-  entries are sorted once, which is the whole build (100k balls in a few tens of ms).
+  entries are sorted once, which is the whole build (cheap enough to redo in every worker).
 - A query point's key at every occupied level is one floor per axis; np.searchsorted finds
   each key's run of entries (the node's records), and np.repeat expands the (point, ball)
   candidate pairs. Python loops run only over blocks of points (bounded memory), never over

@@ -11,7 +11,7 @@ exactly that light. Here the two split the light at a camera path's first diffus
   direct     one light sample at x, combined by the balance heuristic with the BSDF sample
              below when it hits an emitter directly;
   the rest   the path tracer from x along the same BSDF sample, collecting nothing until it
-             reaches a diffuse point y (PathTracer.trace's caustic_ends: that light is the
+             reaches a diffuse point y (Gather.caustic_ends of PathTracer.trace: that light is the
              caustic map's, y's own emission too - a photon that left y and crossed the
              specular chain is a caustic photon).
 
@@ -27,6 +27,8 @@ from ...accel import offset_origin
 from ...vec import gatherer, take
 from .integrator import _GROUPS, _LIGHT, PHOTON_BYTES, PhotonIntegrator, _accumulate, _sample_rows
 from ..path import PathTracer
+from ..path_options import Gather
+from ..path_state import PathState
 from ..surface import towards
 from ...layout import BatchLayout
 
@@ -65,15 +67,15 @@ class CausticPathIntegrator(PhotonIntegrator):
         d = take(bs.wi, g)
         o64 = take(p, x[g])
         o32 = offset_origin(o64, towards(take(ng_f, x[g]), d))
-        beta_g = take(bx, g) * take(bs.weight, g)
-        _accumulate(L, rows, self._trace_gather(gs, len(x), g, beta_g, d, o64, o32, prim[x[g]],
-                                                (bs.pdf[g], bs.delta[g]), emission_only=True))
+        beta_g, skip = take(bx, g) * take(bs.weight, g), prim[x[g]]
+        rays = PathState.rays(o64, o32, d, None, skip, idx=g, beta=beta_g, pdf_prev=bs.pdf[g], no_mis=bs.delta[g])
+        _accumulate(L, rows, self._trace_gather(gs, len(x), rays, emission_only=True))
         # The rest of the path: the path tracer from x along the same sample, leaving out the
         # light it finds before its first diffuse point (caustic_ends: the caustic map's, and
         # what the BSDF sample above found directly). Its numbers: the GATHER stream at pixels
         # W*H and up (nothing else uses them).
         ps = rng.Sampler(s.seed, pixel[rows][g] + s.width * s.height, sample[rows][g], s.pattern, domain=rng.GATHER)
-        Lp = self.path_tracer.trace(ps, o64, o32, d, None, prim[x[g]], max_depth=max(s.max_depth - depth - 1, 0),
-                                    caustic_ends=self.stores)
+        Lp = self.path_tracer.trace(ps, PathState.rays(o64, o32, d, None, skip),
+                                    Gather(max_depth=max(s.max_depth - depth - 1, 0), caustic_ends=self.stores))
         _accumulate(L, rows[g], beta_g * Lp)
 

@@ -32,6 +32,7 @@ from ...errors import Cancelled
 from ...lights.emission import PhotonEmitter
 from ...vec import dot, gatherer, max3, scale, take
 from ..base import Integrator, Stage
+from ..path_state import PathState
 from ..surface import flat_normals, shading_frame, towards
 from .photon_map import PhotonMap, RadiancePhotons
 from .tracing import PhotonTracer, diffuse_materials
@@ -45,7 +46,7 @@ VISIBILITY_LIFT = 1e-4  # x scene radius: photon-to-point segments start and end
 PHOTON_BYTES = 48  # a stored photon: 32 B packed + the k-NN index (tests/test_photon_map.py)
 POSITIONS_RADIUS = 0.002  # x scene radius: a photon shows as a dot this size in the "positions" view
 _CAUSTIC_COLOUR = np.array([1.0, 0.5, 0.1])
-MIN_COUNT = 1  # the seed zeroes estimates below a minimum count; measured below
+MIN_COUNT = 1  # the seed zeroes estimates below a minimum count, which darkens sparse regions
 # Random-number groups of a camera path (rng.Sampler): 0 the pixel filter, then per vertex
 # light (0-1 point, 2 choice) and BSDF (0-1 direction, 2 lobe); gather rays use domain GATHER
 # with sample index = camera sample x G + ray, per bounce one BSDF group.
@@ -148,6 +149,8 @@ class PhotonIntegrator(Integrator):
         self.flat_normal = flat_normals(self.scene.mesh)
         self.stores = diffuse_materials(self.scene.materials)
         self.emissive_material = self.scene.materials.emission.mean(axis=1) > 0
+        # per triangle; a miss (-1) reads the last entry, False
+        self.emissive_prim = np.append(self.emissive_material[self.scene.mesh.material], False)
 
     def install(self, version, arrays):
         split = lambda prefix: {k.split(".", 1)[1]: v for k, v in arrays.items() if k.startswith(prefix + ".")}  # noqa: E731
@@ -181,7 +184,8 @@ class PhotonIntegrator(Integrator):
             def others(r, j):
                 # The estimate at a photon must not count that photon: it was not drawn
                 # independently of the point, and where photons are sparse (a few per disk)
-                # counting it overstated E several-fold (interior: +5-10 % overall).
+                # counting it overstated E several-fold, enough to brighten a whole interior
+                # (bench/results/photon/code_choices.md).
                 keep = j != rows[r]
                 keep[keep] = visible(r[keep], j[keep])
                 return keep
@@ -359,95 +363,103 @@ class PhotonIntegrator(Integrator):
         d = take(bs.wi, g)
         o64 = take(p, pts[g])
         o32 = offset_origin(o64, towards(take(ng_f, pts[g]), d))
-        return self._trace_gather(sampler, len(pts), g, take(bs.weight, g), d, o64, o32, prim[pts[g]],
-                                  (G * bs.pdf[g], bs.delta[g]) if emission else None, emission_only=emission_only)
+        rays = PathState.rays(o64, o32, d, None, prim[pts[g]], idx=g, beta=take(bs.weight, g))
+        if emission:  # the rays are also the BSDF strategy of direct light (G samples of it)
+            rays.pdf_prev, rays.no_mis = G * bs.pdf[g], bs.delta[g]
+        return self._trace_gather(sampler, len(pts), rays, emission_only=emission_only)
 
-    def _trace_gather(self, sampler, K, g, beta, d, o64, o32, skip, mis=None, t_first=None, emission_only=False):
-        """Radiance (K,3) x beta found by gather rays g (rows of the K outputs) leaving o64
-        (float64; o32 the offset float32 origins, skip their primitives) in directions d.
-        mis = (pdf, delta): the rays are also the BSDF strategy of direct light, and the
-        emission they find is weighted against light sampling (balance heuristic); None: that
-        emission is left out (its light is sampled apart). t_first (K,), if given, receives
-        the first hit's distance (inf where the ray escaped). Random groups from 1."""
-        scene, s, accel, lights = self.scene, self.scene.settings, self.ctx.accel, self.ctx.lights
+    def _trace_gather(self, sampler, K, rays: PathState, t_first=None, emission_only=False):
+        """Radiance (K,3) x beta found by gather rays (PathState.rays: rows idx of the K
+        outputs, throughput beta). With their MIS state (pdf_prev, no_mis: delta) the rays
+        are also the BSDF strategy of direct light, and the emission they find is weighted
+        against light sampling (balance heuristic); without it, that emission is left out
+        (its light is sampled apart). t_first (K,), if given, receives the first hit's
+        distance (inf where the ray escaped). Random groups from 1."""
+        scene, s = self.scene, self.scene.settings
         out = np.zeros((3, K))
-        pdf_mis, delta = mis if mis is not None else (None, None)
-        mesh = scene.mesh
+        paths = rays
         for depth in range(s.max_depth):
-            if len(g) == 0:
+            if len(paths) == 0:
                 break
-            hit = accel.intersect(o32, d, None, skip)
-            first = depth == 0
-            if first and t_first is not None:
-                t_first[g] = np.where(hit.prim >= 0, hit.t, np.inf)
-            if first and mis is not None:  # the gather ray is also the BSDF strategy of direct light (MIS)
-                not_camera = np.zeros(len(g), bool)
-                if len(lights.hittable):
-                    _accumulate(out, g, beta * lights.emission_along(o64, d, hit.t, pdf_mis, ~delta, not_camera))
-                missed = hit.prim < 0
-                if missed.any() and lights.sees_escaped:
-                    r = np.flatnonzero(missed)
-                    _accumulate(out, g[r], take(beta, r) * lights.escaped(take(d, r), pdf_mis[r], ~delta[r], not_camera[r]))
-            keep = np.flatnonzero(hit.prim >= 0)
-            g, hp, hprim = g[keep], take(hit.p, keep), hit.prim[keep]
-            beta, d, bary, ng = take(beta, keep), take(d, keep), take(hit.b, keep), take(hit.ng, keep)
-            mat = mesh.material[hprim]
-            if first and mis is not None:
-                emits = self.emissive_material[mat]
-                if emits.any():
-                    r = np.flatnonzero(emits)
-                    cos_l = np.abs(dot(take(d, r), take(ng, r)))
-                    pdf_light = lights.pdf_triangle_hit(hprim[r], take(o64, keep[r]), hit.t[keep[r]], cos_l)
-                    pm = pdf_mis[keep[r]]
-                    w = np.where(delta[keep[r]], 1.0, pm / np.maximum(pm + pdf_light, 1e-300))
-                    _accumulate(out, g[r], take(beta, r) * scale(take(scene.materials.emission, mat[r]), w))
+            hit = paths.intersect(self.ctx.accel, t_first=t_first if depth == 0 else None)
+            if paths.pdf_prev is not None:
+                self._emission_found(out, paths, hit)
             if emission_only:
                 break
-            wo = -d
-            ng_y, ns_y = shading_frame(mesh, self.flat_normal, hprim, bary, ng, wo)
-            stores = self.stores[mat]
-            # Radiance photons hold irradiance, so they serve surfaces that reflect it as
-            # Lambert's law says (albedo / pi E); any other BSDF is evaluated per photon.
-            lambert = stores & ~np.isnan(self.lambert_albedo[mat, 0]) if self.radiance_photons is not None else None
-            for y, fast in ((np.flatnonzero(lambert), True), (np.flatnonzero(stores & ~lambert), False)) \
-                    if lambert is not None else ((np.flatnonzero(stores), False),):
-                if len(y) == 0:
-                    continue
-                py, ny = take(hp, y), take(ng_y, y)
-                if fast:
-                    E, found = self.radiance_photons.lookup(py, ny, self.r_global, return_found=True,
-                                                            accept=self.visible(py, ny, self.radiance_photons))
-                    # Where photons are sparse no radiance photon may lie within the radius:
-                    # the full estimate there, not 0 (which darkened a sunlit interior 10 %).
-                    miss = np.flatnonzero(~found)
-                    if len(miss):
-                        pm, nm = take(py, miss), take(ny, miss)
-                        E[miss], _ = self.global_map.irradiance(pm, nm, s.photon_k, self.r_global,
-                                                                kernel=s.photon_kernel, min_count=MIN_COUNT,
-                                                                accept=self.visible(pm, nm, self.global_map))
-                    Ly = E * take(self.lambert_albedo, mat[y]) * (1.0 / np.pi)
-                else:
-                    bsdf_y = make_closure(scene, self.lambert_albedo, mat[y], take(ns_y, y), ny, take(wo, y), hprim[y],
-                                          take(bary, y))
-                    Ly, _ = self.global_map.radiance(py, ny, lambda r, wi: bsdf_y.eval(wi, r)[0],
-                                                     s.photon_k, self.r_global, kernel=s.photon_kernel, min_count=MIN_COUNT,
-                                                     accept=self.visible(py, ny, self.global_map))
-                _accumulate(out, g[y], take(beta, y) * Ly)
+            paths = paths.arrive(hit, np.flatnonzero(hit.prim >= 0), scene.mesh.material)
+            wo = -paths.d
+            paths.ng, paths.ns = shading_frame(scene.mesh, self.flat_normal, paths.prim, paths.bary, paths.ng, wo)
+            stores = self.stores[paths.mat]
+            self._photon_radiance(out, paths, wo, stores)
             # Specular gather hits: follow them (no emission: that light is the caustic map's).
             c = np.flatnonzero(~stores)
             if len(c) == 0:
                 break
-            bsdf_c = make_closure(scene, self.lambert_albedo, mat[c], take(ns_y, c), take(ng_y, c), take(wo, c),
-                                  hprim[c], take(bary, c))
-            u = sampler.get(1 + depth, g[c], 3)
-            bc = bsdf_c.sample(u[:, :2], u[:, 2])
-            ok = np.flatnonzero(bc.valid)
-            g = g[c[ok]]
-            beta = take(beta, c[ok]) * take(bc.weight, ok)
-            d = take(bc.wi, ok)
-            o32 = offset_origin(take(hp, c[ok]), towards(take(ng_y, c[ok]), d))
-            skip = hprim[c[ok]]
+            paths = paths.take(c) if len(c) < len(paths) else paths
+            bsdf = make_closure(scene, self.lambert_albedo, paths.mat, paths.ns, paths.ng, -paths.d, paths.prim,
+                                paths.bary)
+            u = sampler.get(1 + paths.depth, paths.idx, 3)
+            bs = bsdf.sample(u[:, :2], u[:, 2])
+            ok = np.flatnonzero(bs.valid)
+            paths = paths.leave(ok, take(bs.wi, ok), take(paths.beta, ok) * take(bs.weight, ok))
         return np.ascontiguousarray(out.T)
+
+    def _emission_found(self, out, rays: PathState, hit) -> None:
+        """Emission the gather rays find (light objects they pass, suns and the world where
+        they escape, emissive triangles they hit), weighted by the balance heuristic against
+        light sampling (pdf_prev / (pdf_prev + p_L); 1 where no_mis)."""
+        lights, idx = self.ctx.lights, rays.idx
+        not_camera = np.zeros(len(rays), bool)
+        use_mis = ~rays.no_mis
+        if len(lights.hittable):
+            _accumulate(out, idx, rays.beta * lights.emission_along(rays.o64, rays.d, hit.t, rays.pdf_prev, use_mis,
+                                                                    not_camera))
+        missed = hit.prim < 0
+        if missed.any() and lights.sees_escaped:
+            r = np.flatnonzero(missed)
+            _accumulate(out, idx[r], take(rays.beta, r) * lights.escaped(take(rays.d, r), rays.pdf_prev[r], use_mis[r],
+                                                                          not_camera[r]))
+        emits = self.emissive_prim[hit.prim]
+        if emits.any():
+            r = np.flatnonzero(emits)
+            prim, pm = hit.prim[r], rays.pdf_prev[r]
+            cos_l = np.abs(dot(take(rays.d, r), hit.take(r).ng))
+            pdf_light = lights.pdf_triangle_hit(prim, take(rays.o64, r), hit.t[r], cos_l)
+            w = np.where(rays.no_mis[r], 1.0, pm / np.maximum(pm + pdf_light, 1e-300))
+            Le = take(self.scene.materials.emission, self.scene.mesh.material[prim])
+            _accumulate(out, idx[r], take(rays.beta, r) * scale(Le, w))
+
+    def _photon_radiance(self, out, paths: PathState, wo, stores) -> None:
+        """The global map's radiance estimate at the gather hits on diffuse surfaces (stores
+        (N,) bool), x beta, into out."""
+        s = self.scene.settings
+        # Radiance photons hold irradiance, so they serve surfaces that reflect it as
+        # Lambert's law says (albedo / pi E); any other BSDF is evaluated per photon.
+        lambert = stores & ~np.isnan(self.lambert_albedo[paths.mat, 0]) if self.radiance_photons is not None else None
+        for y, fast in ((np.flatnonzero(lambert), True), (np.flatnonzero(stores & ~lambert), False)) \
+                if lambert is not None else ((np.flatnonzero(stores), False),):
+            if len(y) == 0:
+                continue
+            py, ny = take(paths.p, y), take(paths.ng, y)
+            if fast:
+                E, found = self.radiance_photons.lookup(py, ny, self.r_global, return_found=True,
+                                                        accept=self.visible(py, ny, self.radiance_photons))
+                # Where photons are sparse no radiance photon may lie within the radius:
+                # the full estimate there, not 0 (which visibly darkened a sunlit interior).
+                miss = np.flatnonzero(~found)
+                if len(miss):
+                    pm, nm = take(py, miss), take(ny, miss)
+                    E[miss], _ = self.global_map.irradiance(pm, nm, s.photon_k, self.r_global,
+                                                            kernel=s.photon_kernel, min_count=MIN_COUNT,
+                                                            accept=self.visible(pm, nm, self.global_map))
+                Ly = E * take(self.lambert_albedo, paths.mat[y]) * (1.0 / np.pi)
+            else:
+                bsdf_y = make_closure(self.scene, self.lambert_albedo, paths.mat[y], take(paths.ns, y), ny, take(wo, y),
+                                      paths.prim[y], take(paths.bary, y))
+                Ly, _ = self.global_map.radiance(py, ny, lambda r, wi: bsdf_y.eval(wi, r)[0],
+                                                 s.photon_k, self.r_global, kernel=s.photon_kernel, min_count=MIN_COUNT,
+                                                 accept=self.visible(py, ny, self.global_map))
+            _accumulate(out, paths.idx[y], take(paths.beta, y) * Ly)
 
 
 def _sample_rows(bsdf, pts, u):

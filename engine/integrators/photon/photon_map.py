@@ -22,20 +22,19 @@ counts only if n_p . n > 0.1 and w_p . n > 0, so light on the back of a thin wal
 Storage (`PhotonMap.pack`): float32 position (12 B), octahedral int16 w_p and n_p (4 B each,
 Cigolle et al. 2014, "A Survey of Efficient Representations for Independent Unit Vectors"),
 float32 flux (12 B): 32 B per photon. The search structure is pykdtree's (float32 points used in
-place, uint32 permutation, 11-12 B per photon with its nodes); scipy's cKDTree is the fallback
-where pykdtree is missing but SciPy is there (it copies the points as float64: 51 B per photon
-for the tree, 83 B in all, over budget). The add-on ships pykdtree only.
-bench/photon_map_study.py measures both.
+place, uint32 permutation and its nodes: a fraction of the packed photon); scipy's cKDTree is the
+fallback where pykdtree is missing but SciPy is there (it copies the points as float64, which
+nearly doubles a photon's memory). The add-on ships pykdtree only.
 
 Radiance photons (Christensen 1999, "Faster Photon Map Global Illumination"; pbrt-v2
 integrators/photonmap.cpp): the irradiance at every j-th photon, computed once from the map, so a
 final-gather ray needs one nearest-neighbour lookup (with a normal check) instead of a k-NN
 estimate; the caller multiplies by the diffuse reflectance / pi.
 
-Measured (bench/photon_map_study.py, 1M photons on a box, k = 50, one thread, CPU time): index
-build 0.03 s (0.25 s without the Morton order), pack 0.3 s, 48 B per photon by `nbytes` (43.5 B
-by malloc's count), irradiance 136k points/s for coherent queries (84k/s in random order),
-radiance-photon lookup 1.2M points/s (8.7x), same error against the truth as the full estimate.
+Measured in bench/results/photon/code_choices.md: the memory of both search structures; the
+Morton order of the stored photons, which speeds up the index build and the queries; a
+radiance-photon lookup, many times faster than the full estimate with the same error against
+the truth.
 
 Every query is vectorised over N points, processed in chunks so that the N x k temporaries stay
 under ~25 MB, on ONE thread (queries run inside worker processes, one per core).
@@ -49,14 +48,15 @@ import os
 import numpy as np
 
 from ...errors import EmberError
+from ...settings import DECLARED
 from ...vec import dot, take
 
-KERNELS = ("uniform", "cone", "epanechnikov")
+KERNELS = DECLARED["photon_kernel"].values
 CONE_K = 1.1                 # Jensen's cone filter constant (k >= 1)
 COS_NORMAL_MIN = 0.1         # photon normal . query normal must exceed this (Mitsuba 0.6)
 _SNORM16 = 32767.0
 # Candidate (point, photon) pairs per chunk: ~200 B of temporaries each -> ~25 MB at most.
-# Throughput is flat from 2^14 to 2^17 pairs and 6 % lower at 2^19 (cache; photon_map_study).
+# Bigger chunks gain nothing and start to miss the cache (bench/results/photon/code_choices.md).
 _CHUNK_PAIRS = 1 << 17
 
 
@@ -108,7 +108,8 @@ def _spread_bits(v):
 def morton_order(p: np.ndarray) -> np.ndarray:
     """Permutation (M,) that sorts points p (M,3) along a Z-order curve (1024^3 cubic cells over
     their bounding cube). Photons adjacent in space then sit together in memory, so the gathers of a k-NN
-    query hit the cache: 2.5x faster estimates at 1M photons (bench/photon_map_study.py)."""
+    query hit the cache, which makes estimates on a large map much faster (and the index build
+    too)."""
     if len(p) == 0:
         return np.zeros(0, np.int64)
     lo = p.min(axis=0)
@@ -191,9 +192,8 @@ class _Index:
     @property
     def nbytes(self) -> int:
         """Memory of the structure beyond the points: the permutation plus the nodes, estimated
-        with half-full leaves and 48 B per malloc'ed node (pykdtree, leafsize 16: 16 B per point
-        estimated, 11-12 B measured by malloc statistics on uniform, planar and clustered sets,
-        bench/photon_map_study.py)."""
+        with half-full leaves and 48 B per malloc'ed node (pykdtree, leafsize 16: 16 B per point,
+        a little above malloc's own count)."""
         nodes = 2 * (2 * self.m // self.leafsize + 1)
         if self.kind == "pykdtree":
             return 4 * self.m + 48 * nodes

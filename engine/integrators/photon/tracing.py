@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...accel import offset_origin
+from ...bsdf import lobes
 from ...bsdf.fast_path import make_closure, plain_lambert_albedo
 from ...errors import Cancelled
-from ...scene import LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_PHONG, Materials
+from ...scene import Materials
 from ...vec import dot, max3, scale, take
-from ..surface import flat_normals, shading_frame, towards
+from ..path_state import PathState
+from ..surface import flat_normals, shading_frame
 
 # Smallest GGX roughness (Blender's, alpha = roughness^2) whose lobe stores photons: sharper
 # lobes are followed as specular (their radiance estimate from photons would be too blurred).
@@ -35,12 +36,9 @@ EMIT_POS, EMIT_DIR, FIRST_BOUNCE = 0, 1, 2
 
 
 def diffuse_materials(m: Materials) -> np.ndarray:
-    """(M,) bool: materials with a lobe that stores photons (diffuse, Phong with a diffuse
-    part, microfacet or rough glass with roughness >= MIN_STORE_ROUGHNESS)."""
-    k = m.lobe_kind
-    stores = (k == LOBE_DIFFUSE) | ((k == LOBE_PHONG) & (m.lobe_color.max(axis=1) > 0))
-    stores |= ((k == LOBE_MICROFACET) | (k == LOBE_DIELECTRIC)) & (m.lobe_roughness >= MIN_STORE_ROUGHNESS)
-    stores &= m.lobe_weight.max(axis=1) > 0
+    """(M,) bool: materials with a lobe that stores photons (each lobe says: diffuse, Phong
+    with a diffuse part, microfacet or rough glass with roughness >= MIN_STORE_ROUGHNESS)."""
+    stores = lobes.stores_photons(m, MIN_STORE_ROUGHNESS) & (m.lobe_weight.max(axis=1) > 0)
     return np.bincount(m.lobe_material[stores], minlength=len(m.kind)) > 0
 
 
@@ -63,62 +61,67 @@ class PhotonTracer:
         u0 = sampler.get(EMIT_POS, None, 3)
         em = self.emitter.sample(u0[:, 2], u0[:, :2], sampler.get(EMIT_DIR, None, 2))
         live = np.flatnonzero(em.valid)
-        idx = live
-        o32 = take(em.o, live).astype(np.float32)
-        d, beta, skip = take(em.d, live), take(em.flux, live), em.prim[live]
-        specular = np.ones(len(live), bool)  # every bounce so far specular (none yet)
+        # specular: every bounce so far specular (none yet)
+        photons = PathState.rays(None, take(em.o, live).astype(np.float32), take(em.d, live), None, em.prim[live],
+                                 idx=live, beta=take(em.flux, live), specular=np.ones(len(live), bool))
         out = {key: [] for key in ("position", "wi", "normal", "flux", "caustic", "first")}
         mesh, bounces = self.scene.mesh, 0
-        for depth in range(self.max_depth + 1):
+        while True:
             if stop is not None and stop.is_set():
                 raise Cancelled()
-            if len(idx) == 0:
+            if len(photons) == 0:
                 break
-            hit = self.accel.intersect(o32, d, None, skip)
-            keep = np.flatnonzero(hit.prim >= 0)
-            if len(keep) == 0:
+            hit = photons.intersect(self.accel)
+            photons = photons.arrive(hit, np.flatnonzero(hit.prim >= 0), mesh.material)
+            if len(photons) == 0:
                 break
-            idx, prim, specular = idx[keep], hit.prim[keep], specular[keep]
-            beta, p, d, bary, ng = (take(a, keep) for a in (beta, hit.p, d, hit.b, hit.ng))
-            bounces += len(idx)
-            wo = -d  # toward where the photon came from
-            ng_f, ns = shading_frame(mesh, self.flat_normal, prim, bary, ng, wo)
-            mat = mesh.material[prim]
-            diffuse = self.stores[mat]
-            caustic = specular & (depth > 0) & diffuse
-            store = caustic if caustic_only else diffuse
-            if store.any():
-                r = np.flatnonzero(store)
-                out["position"].append(take(p, r).astype(np.float32))
-                out["wi"].append(take(wo, r).astype(np.float32))
-                out["normal"].append(take(ng_f, r).astype(np.float32))
-                out["flux"].append(take(beta, r).astype(np.float32))
-                out["caustic"].append(caustic[r])
-                out["first"].append(np.full(len(r), depth == 0))
-            go = ~diffuse if caustic_only else np.ones(len(idx), bool)
-            go &= dot(wo, ns) > 0  # shading and geometric normals disagree: a leak, drop
-            if depth == self.max_depth or not go.any():
+            bounces += len(photons)
+            wo = -photons.d  # toward where the photon came from
+            photons.ng, photons.ns = shading_frame(mesh, self.flat_normal, photons.prim, photons.bary, photons.ng, wo)
+            diffuse = self.stores[photons.mat]
+            self._store(out, photons, wo, diffuse, caustic_only)
+            go = ~diffuse if caustic_only else np.ones(len(photons), bool)
+            go &= dot(wo, photons.ns) > 0  # shading and geometric normals disagree: a leak, drop
+            if photons.depth == self.max_depth or not go.any():
                 break
-            g = np.flatnonzero(go)
-            if len(g) < len(idx):
-                idx, prim, specular, mat, diffuse = idx[g], prim[g], specular[g], mat[g], diffuse[g]
-                beta, p, wo, bary, ng_f, ns = (take(a, g) for a in (beta, p, wo, bary, ng_f, ns))
-            bsdf = make_closure(self.scene, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary)
-            u = sampler.get(FIRST_BOUNCE + depth, idx, 4)
-            bs = bsdf.sample(u[:, :2], u[:, 2])
-            w = bs.weight if bs.refraction_eta2 is None else scale(bs.weight, bs.refraction_eta2)
-            beta_new = beta * w
-            q = np.minimum(1.0, np.divide(max3(beta_new), max3(beta), out=np.zeros(len(idx)), where=max3(beta) > 0))
-            survive = bs.valid & (u[:, 3] < q) & (max3(beta_new) > 0)
-            keep = np.flatnonzero(survive)
-            idx, d = idx[keep], take(bs.wi, keep)
-            beta = scale(take(beta_new, keep), 1.0 / q[keep])
-            specular = specular[keep] & ~diffuse[keep]
-            o32 = offset_origin(take(p, keep), towards(take(ng_f, keep), d))
-            skip = prim[keep]
+            if not go.all():
+                g = np.flatnonzero(go)
+                photons, diffuse = photons.take(g), diffuse[g]
+            photons = self._scatter(sampler, photons, diffuse)
         arrays = {key: (np.concatenate(v) if v else np.zeros((0, 3), np.float32)) for key, v in out.items()
                   if key not in ("caustic", "first")}
         for key in ("caustic", "first"):
             arrays[key] = np.concatenate(out[key]) if out[key] else np.zeros(0, bool)
         arrays["bounces"] = np.array([bounces])
         return arrays
+
+    @staticmethod
+    def _store(out: dict, photons: PathState, wo: np.ndarray, diffuse: np.ndarray, caustic_only: bool) -> None:
+        """Files the photons that hit a diffuse surface (caustic_only: the caustic ones) into out."""
+        caustic = photons.specular & (photons.depth > 0) & diffuse
+        store = caustic if caustic_only else diffuse
+        if not store.any():
+            return
+        r = np.flatnonzero(store)
+        out["position"].append(take(photons.p, r).astype(np.float32))
+        out["wi"].append(take(wo, r).astype(np.float32))
+        out["normal"].append(take(photons.ng, r).astype(np.float32))
+        out["flux"].append(take(photons.beta, r).astype(np.float32))
+        out["caustic"].append(caustic[r])
+        out["first"].append(np.full(len(r), photons.depth == 0))
+
+    def _scatter(self, sampler, photons: PathState, diffuse: np.ndarray) -> PathState:
+        """The photons' next bounce: the BSDF sampled in its adjoint form, Russian roulette
+        with survival q = max(beta') / max(beta) (so max(flux) stays constant)."""
+        bsdf = make_closure(self.scene, self.lambert_albedo, photons.mat, photons.ns, photons.ng, -photons.d,
+                            photons.prim, photons.bary)
+        u = sampler.get(FIRST_BOUNCE + photons.depth, photons.idx, 4)
+        bs = bsdf.sample(u[:, :2], u[:, 2])
+        w = bs.weight if bs.refraction_eta2 is None else scale(bs.weight, bs.refraction_eta2)
+        beta, beta_new = photons.beta, photons.beta * w
+        q = np.minimum(1.0, np.divide(max3(beta_new), max3(beta), out=np.zeros(len(photons)), where=max3(beta) > 0))
+        survive = bs.valid & (u[:, 3] < q) & (max3(beta_new) > 0)
+        keep = np.flatnonzero(survive)
+        photons = photons.leave(keep, take(bs.wi, keep), scale(take(beta_new, keep), 1.0 / q[keep]))
+        photons.specular &= ~diffuse[keep]
+        return photons

@@ -1,0 +1,119 @@
+"""The GGX reflection lobe (Glossy BSDF, Metallic, Principled metallic and specular layers):
+F D G2 / (4 cos_o cos_i), a perfect mirror when smooth (formulas: engine/bsdf/microfacet.py).
+
+Its Fresnel colour F per FRESNEL_* model (Cycles' svm/closure.h): none (F = colour, Glossy
+BSDF), F82-tint conductor (f0 = colour, edge tint = tint; Principled metallic) and the exact
+dielectric Fresnel of ior remapped to F0(ior) tint .. 1 (Principled specular)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...scene import FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_MICROFACET, RAY_GLOSSY
+from ...vec import dot, normalize
+from .. import fresnel, layering, microfacet
+from . import inputs
+from .base import CLASS_GLOSSY, LABEL_GLOSSY, LobeSample, SurfaceLobe, SurfaceParams, mean_albedo
+
+_MIRROR_XY = np.array([-1.0, -1.0, 1.0])  # reflection about the normal
+
+
+@dataclass
+class MicrofacetParams(SurfaceParams):
+    """tint (K,3); roughness (K,) Blender's; alpha (K,) GGX (roughness^2, or Filter Glossy's);
+    ior (K,); fresnel (K,) FRESNEL_*."""
+
+    tint: np.ndarray
+    roughness: np.ndarray
+    alpha: np.ndarray
+    ior: np.ndarray
+    fresnel: np.ndarray
+
+
+def fresnel_color(p: MicrofacetParams, cos: np.ndarray) -> np.ndarray:
+    """Fresnel colour F (K,3) at cosines cos (K,) between wo and the microfacet normal."""
+    F = p.color.copy()  # FRESNEL_NONE: the Glossy colour
+    r = np.flatnonzero(p.fresnel == FRESNEL_F82)
+    if len(r):
+        F[r] = fresnel.f82_tint(p.color[r], np.minimum(p.tint[r], 1.0), cos[r])
+    r = np.flatnonzero(p.fresnel == FRESNEL_DIELECTRIC)
+    if len(r):
+        eta = p.ior[r]
+        F[r] = fresnel.dielectric_remapped(fresnel.f0_from_ior(eta)[:, None] * p.tint[r], cos[r], eta)
+    return F
+
+
+def specular_layer_weight(p, wo: np.ndarray) -> np.ndarray:
+    """(K,) weight a dielectric specular layer (F0 = F0(ior) tint, roughness, ior) leaves to
+    the lobes under it: Cycles' albedo estimate from its table (engine/bsdf/layering.py)."""
+    f0 = fresnel.f0_from_ior(p.ior)[:, None] * p.tint
+    return layering.base_weight(f0, p.roughness, wo[:, 2], p.ior)
+
+
+def blur(p, min_alpha: np.ndarray, is_delta) -> None:
+    """Cycles' bsdf_microfacet_blur: alpha = max(alpha, min_alpha) (K,); is_delta(p) of the
+    rows changed is refreshed. The albedo estimates keep the authored roughness, as Cycles
+    keeps its energy terms."""
+    rows = np.flatnonzero(min_alpha > p.alpha)
+    if len(rows):
+        p.alpha[rows] = min_alpha[rows]
+        p.delta[rows] = is_delta(p.take(rows))
+
+
+class Microfacet(SurfaceLobe):
+    kind = LOBE_MICROFACET
+    rays = RAY_GLOSSY
+    reflection_class = transmission_class = CLASS_GLOSSY
+
+    def parameters(self, m, lobe, point, uv, inside) -> MicrofacetParams:
+        color = inputs.color(m, lobe, point, uv)
+        roughness = inputs.roughness(m, lobe, point, uv)
+        alpha = microfacet.alpha_from_roughness(roughness)
+        return MicrofacetParams(color=color, delta=microfacet.is_delta(alpha), tint=inputs.tint(m, lobe, color),
+                                roughness=roughness, alpha=alpha, ior=m.lobe_ior[lobe], fresnel=m.lobe_fresnel[lobe])
+
+    def is_delta(self, p):
+        return microfacet.is_delta(p.alpha)
+
+    def albedo(self, p, wo):
+        return fresnel_color(p, np.clip(wo[:, 2], 0.0, 1.0))
+
+    def eval(self, p, wo, wi):
+        h = normalize(wo + wi)
+        F = fresnel_color(p, np.clip(dot(wo, h), 0.0, 1.0))
+        return microfacet.eval_reflection(p.alpha, wo, wi, F), microfacet.pdf_reflection(p.alpha, wo, wi)
+
+    def pdf(self, p, wo, wi):
+        return microfacet.pdf_reflection(p.alpha, wo, wi)
+
+    def sample(self, p, wo, u, u_branch) -> LobeSample:
+        delta = p.delta
+        if not delta.any():
+            wi, _, pdf = microfacet.sample_reflection(p.alpha, wo, u)
+            return LobeSample(wi=wi, pdf=pdf, delta=delta, label=LABEL_GLOSSY)
+        wi, weight, pdf = np.empty((len(p), 3)), np.zeros((len(p), 3)), np.ones(len(p))
+        d, s = np.flatnonzero(delta), np.flatnonzero(~delta)
+        # Mirror rows: F at wo, none under the shading normal.
+        wi[d] = wo[d] * _MIRROR_XY
+        weight[d] = fresnel_color(p.take(d), np.clip(wo[d, 2], 0.0, 1.0)) * (wo[d, 2] > 0)[:, None]
+        if len(s):
+            wi[s], _, pdf[s] = microfacet.sample_reflection(p.alpha[s], wo[s], u[s])
+        return LobeSample(wi=wi, pdf=pdf, delta=delta, label=LABEL_GLOSSY, weight=weight)
+
+    def drop_caustics(self, p, reflection, refraction):
+        return reflection  # Cycles makes no glossy or metallic closure
+
+    def blur(self, p, min_alpha):
+        blur(p, min_alpha, self.is_delta)
+
+    def layer_weight(self, p, wo):
+        return specular_layer_weight(p, wo)
+
+    def stores_photons(self, m, lobe, min_roughness):
+        return m.lobe_roughness[lobe] >= min_roughness
+
+    def analysis_albedo(self, m, lobe, color, min_roughness):
+        a = np.maximum(mean_albedo(m, lobe, color), 0.0)
+        sharp = m.lobe_roughness[lobe] < min_roughness
+        return {"glossy": np.where(sharp, 0.0, a), "specular": np.where(sharp, a, 0.0)}
