@@ -6,7 +6,10 @@ values above 1, byte ones with every 8-bit level; alpha varies over the image. C
 sweep past the image's edges, so each extension shows; the projections read points of a cube
 about the plane.
 """
+from dataclasses import dataclass
+
 import numpy as np
+import OpenEXR
 import pytest
 
 pytestmark = pytest.mark.blender
@@ -214,3 +217,262 @@ def test_colour_spaces_coordinates_and_mapping_match_cycles():
         cycles, ember = results[name]
         assert np.ptp(cycles, axis=0).max() < 1e-6 and np.allclose(cycles, ember, atol=1e-6), name
     assert np.allclose(results["no_image"][0], [1.0, 0.0, 1.0])
+
+
+# ---- Box projection: smooth planes whose vertex normals sweep the octants ---------------------
+
+@dataclass(frozen=True)
+class Smooth:
+    """A case baked on a plane of two triangles (corners 0 1 2 and 0 2 3, counter-clockwise
+    from UV (0, 0)) shaded smooth with object-space vertex `normals` (4, 3), turned by `rotation`
+    and scaled by `scale` (so that the object's normal transform shows)."""
+
+    build: object
+    normals: tuple
+    rotation: tuple = (0.3, -0.5, 0.8)
+    scale: tuple = (1.0, 2.0, 0.5)
+    flip: bool = False  # wound clockwise: the triangles face -z in object space
+
+
+def _smooth_plane(k: int, case: Smooth):
+    mesh = bpy.data.meshes.new(f"smooth_{k}")
+    faces = [(0, 2, 1), (0, 3, 2)] if case.flip else [(0, 1, 2), (0, 2, 3)]
+    mesh.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [], faces)
+    uv = mesh.uv_layers.new(name="UVMap")
+    corners = {0: (0, 0), 1: (1, 0), 2: (1, 1), 3: (0, 1)}
+    for loop, data in zip(mesh.loops, uv.data):
+        data.uv = corners[loop.vertex_index]
+    for poly in mesh.polygons:
+        poly.use_smooth = True
+    mesh.normals_split_custom_set_from_vertices([tuple(n) for n in case.normals])
+    ob = bpy.data.objects.new(f"smooth_{k}", mesh)
+    bpy.context.scene.collection.objects.link(ob)
+    ob.location = (node_bake.SPACING * k, 0.0, 0.0)
+    ob.rotation_euler, ob.scale = case.rotation, case.scale
+    return ob
+
+
+def _shading_normals(ob, size: int) -> np.ndarray:
+    """Cycles' smooth normal at the bake's points: the vertex normals in world space (the
+    object's transform applied to the mesh), mixed by the point's barycentric weights in its
+    triangle and normalised (geom/triangle.h triangle_smooth_normal)."""
+    mesh = ob.data
+    vertex = np.zeros((4, 3))
+    for loop, normal in zip(mesh.loops, mesh.corner_normals):
+        vertex[loop.vertex_index] = normal.vector
+    m = np.array(ob.matrix_world, np.float64)[:3, :3]
+    world = vertex @ np.linalg.inv(m)  # n M^-1 = (M^-T n)^T
+    world /= np.linalg.norm(world, axis=1, keepdims=True)
+    i = np.arange(size) + 0.5
+    u, v = (a.ravel() for a in np.meshgrid((i + node_bake.BAKE_OFFSET[0]) / size,
+                                           (i + node_bake.BAKE_OFFSET[1]) / size))
+    lower = u >= v  # triangle 0 1 2: weights (1 - u, u - v, v); triangle 0 2 3: (1 - v, u, v - u)
+    weights = np.where(lower[:, None], np.stack([1 - u, u - v, v, 0 * u], 1), np.stack([1 - v, 0 * u, u, v - u], 1))
+    n = weights @ world
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def bake_smooth(cases: dict, size: int = node_bake.SIZE) -> dict:
+    """node_bake.bake for Smooth cases: {name: (cycles, ember)}."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device, scene.cycles.samples = "CPU", 1
+    camera = node_bake._camera()
+    made = {}
+    for k, (name, case) in enumerate(cases.items()):
+        ob = _smooth_plane(k, case)
+        mat, out = node_bake._material(name, case.build)
+        target = bpy.data.images.new(f"bake_{k}", size, size, float_buffer=True)
+        tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+        tex.image = target
+        mat.node_tree.nodes.active = tex
+        ob.data.materials.append(mat)
+        made[name] = (ob, out, target)
+    for first in range(0, len(made), node_bake.BAKE_CHUNK):
+        bpy.ops.object.select_all(action="DESELECT")
+        chunk = [ob for ob, _, _ in list(made.values())[first:first + node_bake.BAKE_CHUNK]]
+        for ob in chunk:
+            ob.select_set(True)
+        bpy.context.view_layer.objects.active = chunk[0]
+        bpy.ops.object.bake(type="EMIT")
+    bpy.context.view_layer.update()
+    world_from_camera = node_bake._world_from_camera(camera)
+    results = {}
+    for name, (ob, out, target) in made.items():
+        cycles = np.array(target.pixels[:], np.float64).reshape(size * size, 4)[:, :3]
+        state = node_bake._state(ob, size, camera, world_from_camera, "ABOVE_SURFACE")
+        # The baker's ray arrives along the smooth normal: where that faces away from the
+        # triangle, Cycles takes the hit as backfacing and turns both normals around.
+        n, ng = _shading_normals(ob, size), (-1.0 if cases[name].flip else 1.0) * state.Ng
+        back = np.sum(n * ng, axis=1) < 0.0
+        state._fields["N"] = np.where(back[:, None], -n, n)
+        state._fields["Ng"] = np.where(back[:, None], -ng, ng)
+        state._fields["backfacing"] = back
+        results[name] = (cycles, node_bake.evaluate(out, state))
+    return results
+
+
+# Vertex normals (corners 0 1 2 3): the first triangle spans an octant from axis to axis, the
+# second runs from x past the diagonal to z; signs vary so that every plane's flip shows.
+NORMALS = {
+    "ppp": ((1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1)),
+    "nnp": ((-1, 0.05, 0.1), (0.1, -1, 0.05), (0.05, 0.1, 1), (-1, -1.2, 0.9)),
+    "pnn": ((1, 0.2, -0.1), (0.3, -1, -0.2), (0.1, -0.2, -1), (0.8, -1, -1.1)),
+}
+# For triangles facing -z: normals below the plane (those above it are seen from behind).
+FLIPPED = {
+    "pnn_flipped": NORMALS["pnn"],
+    "npn_flipped": ((-1, 0.1, -0.05), (0.05, 1, -0.1), (-0.1, 0.05, -1), (-1.1, 0.9, -1)),
+}
+
+
+def test_box_projection_matches_cycles():
+    cases = {}
+    for sign, normals in NORMALS.items():
+        for blend in (0.0, 0.15, 0.5, 1.0):
+            cases[f"{sign}_{blend}"] = Smooth(case(dict(projection="BOX", projection_blend=blend), CUBE), normals)
+    for sign, normals in FLIPPED.items():
+        for blend in (0.0, 0.3):
+            cases[f"{sign}_{blend}"] = Smooth(case(dict(projection="BOX", projection_blend=blend), CUBE), normals,
+                                              flip=True)
+    cases["alpha"] = Smooth(case(dict(projection="BOX", projection_blend=0.3, interpolation="Cubic"), CUBE,
+                                 output="Alpha"), NORMALS["nnp"])
+    cases["byte_unassociated"] = Smooth(case(dict(projection="BOX", projection_blend=0.4, extension="MIRROR"), CUBE,
+                                             image_args=("byte_srgb", False), alpha_linked=True), NORMALS["pnn"])
+    check(bake_smooth(cases))
+
+
+# ---- UDIM tiles and image sequences: files on disk ---------------------------------------------
+
+TILES = {1001: (16, 12), 1002: (8, 8), 1011: (12, 16)}
+
+
+def _write(path: str, width: int, height: int, seed: int, is_float: bool = True):
+    """An image file of noise: OpenEXR float (written with the OpenEXR module, so that no colour
+    management touches it), or 8-bit PNG (Blender writes a byte image's bytes as they are)."""
+    pixels = _pattern(seed, width, height)
+    if is_float:
+        pixels[..., :3] *= 2.0
+        OpenEXR.File({"type": OpenEXR.scanlineimage}, {"RGBA": np.ascontiguousarray(pixels[::-1])}).write(path)
+        return
+    made = bpy.data.images.new("written", width, height, alpha=True)
+    made.pixels.foreach_set(pixels.ravel())
+    made.filepath_raw, made.file_format = path, "PNG"
+    made.save()
+    bpy.data.images.remove(made)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """UDIM tiles of three sizes (1003 and 1012 missing), and a sequence of three 8-bit frames."""
+    folder = tmp_path_factory.mktemp("images")
+    for number, (w, h) in TILES.items():
+        _write(str(folder / f"tiles.{number}.exr"), w, h, number)
+    for frame in (1, 2, 3):
+        _write(str(folder / f"frame_{frame:03d}.png"), 10 + frame, 9, frame, is_float=False)
+    return folder
+
+
+def _udim(folder):
+    def make():
+        found = bpy.data.images.get("tiles.1001.exr")
+        if found is None:
+            found = bpy.data.images.load(str(folder / "tiles.1001.exr"))
+            found.source = "TILED"
+        return found
+    return make
+
+
+def _with_image(props: dict, make, vector=uv_sweep(), output="Color", user=None, mapping=None):
+    def build(nt):
+        src = vector(nt) if vector is not None else None
+        n = nt.nodes.new("ShaderNodeTexImage")
+        n.image = make()
+        for key, value in props.items():
+            setattr(n, key, value)
+        for key, value in (user or {}).items():
+            setattr(n.image_user, key, value)
+        for key, value in (mapping or {}).items():
+            setattr(n.texture_mapping, key, value)
+        if src is not None:
+            nt.links.new(src, n.inputs["Vector"])
+        return n.outputs[output]
+    return build
+
+
+def test_udim_tiles_match_cycles(files):
+    """Each point reads the tile its coordinate's integer parts name, at the coordinate less
+    them, extended within the tile; -1 < u < 0 truncates to tile 1001; a missing tile, u < -1
+    or v < -1 is magenta. Box projection reads tile 1001."""
+    make = _udim(files)
+    across = uv_sweep(lo=(-1.3, -1.2), hi=(2.7, 2.4))
+    cases = {f"{i}_{e}": _with_image(dict(interpolation=i, extension=e), make, across)
+             for i in INTERPOLATIONS for e in ("REPEAT", "EXTEND", "CLIP")}
+    cases["alpha"] = _with_image(dict(interpolation="Cubic", extension="MIRROR"), make, across, output="Alpha")
+    cases["sphere"] = _with_image(dict(projection="SPHERE"), make, CUBE)
+    check(node_bake.bake(cases))
+    box = {"box": Smooth(_with_image(dict(projection="BOX", projection_blend=0.2), make, across),
+                         NORMALS["ppp"])}
+    check(bake_smooth(box))
+
+
+def _sequence(folder):
+    def make():
+        found = bpy.data.images.get("frame_001.png")
+        if found is None:
+            found = bpy.data.images.load(str(folder / "frame_001.png"))
+            found.source = "SEQUENCE"
+        return found
+    return make
+
+
+# Image users at scene frame 1: (frame_start, frame_duration, frame_offset, use_cyclic) -> the
+# frame shown (BKE_image_user_frame_get).
+USERS = {
+    "first": ((1, 3, 0, False), 1),
+    "offset": ((1, 3, 1, False), 2),
+    "started_before": ((-1, 3, 0, False), 3),
+    "held_at_start": ((4, 3, 1, False), 1),
+    "held_at_end": ((-9, 2, 1, False), 3),
+    "cyclic": ((-3, 3, 0, True), 2),
+    "cyclic_wrapped": ((-1, 3, 0, True), 3),
+    "cyclic_past": ((-2, 3, 1, True), 2),
+}
+
+
+def _heard(monkeypatch, expected: str) -> list:
+    """Warnings of the graph export that contain `expected`, kept aside (the harness allows
+    none); others still fail the bake."""
+    heard = []
+    export = node_bake.export_graph
+
+    def export_graph(sockets, warn=None):
+        def sort(text):
+            if expected in text:
+                heard.append(text)
+            else:
+                warn(text)
+        return export(sockets, sort)
+    monkeypatch.setattr(node_bake, "export_graph", export_graph)
+    return heard
+
+
+def test_image_sequences_read_the_scene_frames_file(files, monkeypatch):
+    """Each node reads the frame its ImageUser shows at the scene's frame; a frame whose file
+    is missing is magenta, with a warning."""
+    heard = _heard(monkeypatch, "is missing")
+    make = _sequence(files)
+    cases = {}
+    for name, ((start, duration, offset, cyclic), frame) in USERS.items():
+        user = dict(frame_start=start, frame_duration=duration, frame_offset=offset, use_cyclic=cyclic)
+        cases[name] = _with_image(dict(interpolation="Linear", extension="EXTEND"), make, user=user)
+    cases["missing"] = _with_image(dict(), make, user=dict(frame_duration=3, frame_offset=5))
+    results = node_bake.bake(cases)
+    check(results)
+    assert np.allclose(results["missing"][0], [1.0, 0.0, 1.0]) and len(heard) == 1
+    from ember.engine.blender.export_image import frame_number
+    for name, ((start, duration, offset, cyclic), frame) in USERS.items():
+        user = type("User", (), dict(frame_start=start, frame_duration=duration, frame_offset=offset,
+                                     use_cyclic=cyclic))
+        assert frame_number(user, 1) == frame, name
