@@ -476,3 +476,73 @@ def test_image_sequences_read_the_scene_frames_file(files, monkeypatch):
         user = type("User", (), dict(frame_start=start, frame_duration=duration, frame_offset=offset,
                                      use_cyclic=cyclic))
         assert frame_number(user, 1) == frame, name
+
+
+# ---- image files: what Cycles reads with OpenImageIO, Ember through Blender -------------------
+
+# name -> (file format, colour mode, depth) as Blender writes them.
+FORMATS = {"rgba8.png": ("PNG", "RGBA", "8"), "rgb8.png": ("PNG", "RGB", "8"), "grey8.png": ("PNG", "BW", "8"),
+           "rgb16.png": ("PNG", "RGB", "16"), "rgba16.png": ("PNG", "RGBA", "16"), "rgba.exr": ("OPEN_EXR", "RGBA", "32"),
+           "grey.exr": ("OPEN_EXR", "BW", "16"), "rgb.jpg": ("JPEG", "RGB", None),
+           "rgba.tif": ("TIFF", "RGBA", "8"), "rgba.tga": ("TARGA", "RGBA", None)}
+
+
+@pytest.fixture(scope="module")
+def formats(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("formats")
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.view_settings.view_transform = "Standard"
+    settings = scene.render.image_settings
+    for k, (name, (kind, mode, depth)) in enumerate(FORMATS.items()):
+        source = bpy.data.images.new("source", WIDTH, HEIGHT, alpha=True, float_buffer=True)
+        source.pixels.foreach_set(_pattern(100 + k).ravel())
+        settings.file_format, settings.color_mode = kind, mode
+        if depth is not None:
+            settings.color_depth = depth
+        source.save_render(str(folder / name), scene=scene)
+        bpy.data.images.remove(source)
+    return folder
+
+
+def _file(folder, name: str, colorspace=None, pack: bool = False):
+    def make():
+        key = f"{name}:{colorspace}:{pack}"
+        found = bpy.data.images.get(key)
+        if found is None:
+            found = bpy.data.images.load(str(folder / name))
+            found.name = key
+            if colorspace is not None:
+                found.colorspace_settings.name = colorspace
+            if pack:
+                found.pack()
+        return found
+    return make
+
+
+def test_image_files_match_cycles(formats):
+    """8-bit PNG (RGBA, RGB, grey), JPEG, TIFF, Targa, OpenEXR (RGBA, grey) and 16-bit PNG,
+    read from disk (Cycles' OpenImageIO: grey files are one channel, 16-bit sRGB stays sRGB
+    and is premultiplied in 16 bits) and packed (Cycles reads Blender's buffer)."""
+    cases = {}
+    for name in FORMATS:
+        cases[name] = _with_image(dict(interpolation="Cubic"), _file(formats, name))
+        cases[f"{name}_alpha"] = _with_image(dict(interpolation="Linear"), _file(formats, name), output="Alpha")
+    cases["rgba8_non_color"] = _with_image(dict(interpolation="Linear"), _file(formats, "rgba8.png", "Non-Color"))
+    cases["rgba8_packed"] = _with_image(dict(interpolation="Linear"), _file(formats, "rgba8.png", pack=True))
+    cases["rgba16_packed"] = _with_image(dict(interpolation="Linear"), _file(formats, "rgba16.png", pack=True))
+    cases["rgb16_packed"] = _with_image(dict(interpolation="Linear"), _file(formats, "rgb16.png", pack=True))
+    cases["rgba8_unassociated"] = _unassociated(_file(formats, "rgba8.png"))
+    check(node_bake.bake(cases))
+
+
+def _unassociated(make):
+    def build(nt):
+        n = nt.nodes.new("ShaderNodeTexImage")
+        n.image = make()
+        nt.links.new(uv_sweep()(nt), n.inputs["Vector"])
+        add = nt.nodes.new("ShaderNodeVectorMath")
+        nt.links.new(n.outputs["Color"], add.inputs[0])
+        nt.links.new(n.outputs["Alpha"], add.inputs[1])
+        return add.outputs[0]
+    return build

@@ -9,8 +9,11 @@ linear, whatever their colour space says. Byte images are 8-bit values: with str
 (Blender's byte buffers always are) and a colour space that is not data, Cycles premultiplies
 them in 8 bits, (c a) / 255 rounded down; sRGB ones stay sRGB and the kernel converts them
 after interpolating (compressed sRGB textures); Linear Rec.709 and Non-Color are read as they
-are; other colour spaces Cycles converts with OpenColorIO into half floats, which Ember does not
-(a warning; the values are read as linear). Alpha mode None makes alpha 1. A pixel with a NaN
+are. A 16-bit sRGB PNG on disk Cycles reads from the file as 16-bit sRGB values (premultiplied
+in 16 bits, converted after interpolating), which Blender's linear floats are encoded back to
+(a packed one Cycles reads from Blender's floats). Byte images in other colour spaces Cycles
+converts with OpenColorIO into half floats, which Ember does not (a warning; the values are
+read as linear). Alpha mode None makes alpha 1. A pixel with a NaN
 or infinite channel becomes transparent black, as Cycles cleans float images. An image Cycles
 cannot load (no pixels: a missing file; a channel count other than 1 or 4) is None, rendered
 magenta.
@@ -80,10 +83,35 @@ def texels(image, warn=_quiet, owner: str = "", name: str | None = None) -> Texe
         if space not in _SRGB | _DATA | _LINEAR:
             warn(f"{owner}image '{image.name}' is in colour space '{space}', which Ember does not convert "
                  "for byte images: its values are read as linear")
+    srgb = not image.is_float and space in _SRGB
+    if image.is_float and space in _SRGB and _read_by_cycles(image) and image.file_format == "PNG":
+        rgba, srgb = _ushort_srgb(rgba, channels == 4 and alpha_mode not in ("CHANNEL_PACKED", "NONE")), True
     if alpha_mode == "NONE":
         rgba[..., 3] = 1.0
     associated = not data and alpha_mode not in ("CHANNEL_PACKED", "NONE")
-    return Texels(name or image.name, rgba, srgb=not image.is_float and space in _SRGB, associated=associated)
+    return Texels(name or image.name, rgba, srgb=srgb, associated=associated)
+
+
+def _read_by_cycles(image) -> bool:
+    """Cycles reads the image's file itself (OpenImageIO), not Blender's buffer: a file on disk,
+    not packed (blender/shader.cpp image_is_builtin)."""
+    return image.packed_file is None and image.source in ("FILE", "SEQUENCE", "TILED")
+
+
+def _ushort_srgb(rgba, associate: bool) -> np.ndarray:
+    """A 16-bit sRGB PNG as Cycles keeps it: the file's 16-bit sRGB values, converted by the
+    kernel after interpolating, premultiplied in 16 bits, (c a) / 65535 rounded down. Blender
+    holds them as linear floats (premultiplied where there is alpha): encoded back to sRGB and
+    rounded to 16 bits, they are the file's values."""
+    a = rgba[..., 3:].astype(np.float64)
+    linear = np.where(a > 0.0, rgba[..., :3] / np.where(a > 0.0, a, 1.0), 0.0) if associate else rgba[..., :3]
+    linear = np.asarray(linear, np.float64)
+    encoded = np.where(linear < 0.0031308, np.maximum(linear, 0.0) * 12.92,
+                       1.055 * np.power(np.maximum(linear, 0.0031308), 1.0 / 2.4) - 0.055)
+    values = np.rint(np.clip(np.concatenate([encoded, a], axis=-1), 0.0, 1.0) * 65535.0).astype(np.int64)
+    if associate:
+        values[..., :3] = values[..., :3] * values[..., 3:] // 65535
+    return (values / 65535.0).astype(np.float32)
 
 
 def frame_number(user, scene_frame: int) -> int:
