@@ -546,3 +546,47 @@ def _unassociated(make):
         nt.links.new(n.outputs["Alpha"], add.inputs[1])
         return add.outputs[0]
     return build
+
+
+# ---- what no bake shows -------------------------------------------------------------------------
+
+def test_sources_ember_cannot_read_exactly_warn():
+    """Byte images in colour spaces Cycles converts with OpenColorIO, movies, and UDIM tiles
+    held only in memory export with a warning (the bakes above show the rest)."""
+    from ember.engine.blender.export_image import image_texels, sequence_path
+    from ember.engine.nodes.image import Texels, Tiles
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    heard = []
+    context = type("Context", (), dict(node=None, path=(), warn=heard.append))
+    acescg = image("acescg", False, "ACEScg")
+    assert isinstance(image_texels(acescg, context), Texels) and "ACEScg" in heard[-1]
+    tiled = bpy.data.images.new("tiled", 4, 4, tiled=True)
+    tiled.tiles.new(tile_number=1002)
+    tiles = image_texels(tiled, context)
+    assert isinstance(tiles, Tiles) and [n for n, _ in tiles.tiles] == [1001, 1002] and "UDIM" in heard[-1]
+    assert sequence_path("//render/shot_0042.v2.png", 7) == "//render/shot_0042.v7.png"
+    assert sequence_path("/a/b/frame_001.exr", 12) == "/a/b/frame_012.exr"
+    assert sequence_path("/a/b/frame_99.exr", 123) == "/a/b/frame_123.exr"
+    assert len(heard) == 2
+
+
+def test_constant_coordinates_fold_and_box_reads_the_normal():
+    """A Flat, Sphere or Tube texture fed constants is evaluated once, at compile time; Box reads
+    the shading normal and the object's transform; an unlinked Vector reads the UV map."""
+    from ember.engine.nodes.graph import Graph, Input, Link, Node
+    from ember.engine.nodes.image import Texels
+    from ember.engine.nodes.program import compile
+    texels = Texels("t", _pattern(3))
+    for projection, reads in (("FLAT", set()), ("SPHERE", set()), ("BOX", {"N", "world_from_object"})):
+        tex = Node("ShaderNodeTexImage", "t", (("image", texels), ("projection", projection)),
+                   (Input("Vector", "vector", (0.2, 0.7, 0.4), Link(0, "Vector", "vector")),),
+                   (("Color", "rgba"), ("Alpha", "value")))
+        value = Node("ShaderNodeCombineXYZ", "c", (), (Input("X", "value", 0.2), Input("Y", "value", 0.7),
+                                                       Input("Z", "value", 0.4)), (("Vector", "vector"),))
+        graph = Graph((value, tex), (("out", Input("out", "rgba", (0, 0, 0), Link(1, "Color", "rgba"))),))
+        program = compile(graph, {"out": "rgba"})
+        assert set(program.reads) == reads and (not program.ops) == (not reads), projection
+    unlinked = Node("ShaderNodeTexImage", "t", (("image", texels),), (Input("Vector", "vector", (0, 0, 0)),),
+                    (("Color", "rgba"), ("Alpha", "value")))
+    graph = Graph((unlinked,), (("out", Input("out", "value", 0.0, Link(0, "Alpha", "value"))),))
+    assert set(compile(graph, {"out": "value"}).reads) == {"uv"}
