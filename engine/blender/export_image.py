@@ -13,8 +13,8 @@ are. A 16-bit sRGB PNG on disk Cycles reads from the file as 16-bit sRGB values 
 in 16 bits, converted after interpolating), which Blender's linear floats are encoded back to
 (a packed one Cycles reads from Blender's floats). Byte images in other colour spaces Cycles
 converts with OpenColorIO into half floats, which Ember does not (a warning; the values are
-read as linear). Alpha mode None makes alpha 1. A pixel with a NaN
-or infinite channel becomes transparent black, as Cycles cleans float images. An image Cycles
+read as linear). Alpha mode None makes alpha 1. Float pixels with a NaN or infinite channel
+are cleaned as Cycles cleans them (one in four: _clean). An image Cycles
 cannot load (no pixels: a missing file; a channel count other than 1 or 4) is None, rendered
 magenta.
 
@@ -71,8 +71,8 @@ def texels(image, warn=_quiet, owner: str = "", name: str | None = None) -> Texe
     buf = buf.reshape(h, w, channels)
     rgba = np.ones((h, w, 4), np.float32)
     rgba[..., :channels if channels == 4 else 3] = buf
-    # Cycles zeroes all four channels of a float pixel with any that is not finite.
-    rgba[~np.all(np.isfinite(rgba), axis=-1)] = 0.0
+    if image.is_float:
+        _clean(rgba)
     space, alpha_mode = image.colorspace_settings.name, image.alpha_mode
     data = space in _DATA
     if not image.is_float:
@@ -112,6 +112,16 @@ def _ushort_srgb(rgba, associate: bool) -> np.ndarray:
     if associate:
         values[..., :3] = values[..., :3] * values[..., 3:] // 65535
     return (values / 65535.0).astype(np.float32)
+
+
+def _clean(rgba) -> None:
+    """Cycles' cleaning of float RGBA images (scene/image.cpp file_load_image): a pixel with a
+    channel that is not finite becomes transparent black, but the loop steps four pixels at a
+    time over a pixel index, so only pixels whose index (row * width + column, from the bottom
+    row) is a multiple of 4 are cleaned; the others keep their NaN and infinities, which every
+    lookup that touches them spreads (and the film then drops)."""
+    flat = rgba.reshape(-1, 4)[::4]
+    flat[~np.all(np.isfinite(flat), axis=-1)] = 0.0
 
 
 def frame_number(user, scene_frame: int) -> int:
