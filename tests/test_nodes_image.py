@@ -492,8 +492,8 @@ def test_image_sequences_read_the_scene_frames_file(files, monkeypatch):
 
 # name -> (file format, colour mode, depth) as Blender writes them.
 FORMATS = {"rgba8.png": ("PNG", "RGBA", "8"), "rgb8.png": ("PNG", "RGB", "8"), "grey8.png": ("PNG", "BW", "8"),
-           "rgb16.png": ("PNG", "RGB", "16"), "rgba16.png": ("PNG", "RGBA", "16"), "rgba.exr": ("OPEN_EXR", "RGBA", "32"),
-           "grey.exr": ("OPEN_EXR", "BW", "16"), "rgb.jpg": ("JPEG", "RGB", None),
+           "rgb16.png": ("PNG", "RGB", "16"), "rgba16.png": ("PNG", "RGBA", "16"),
+           "rgba.exr": ("OPEN_EXR", "RGBA", "32"), "grey.exr": ("OPEN_EXR", "BW", "16"), "rgb.jpg": ("JPEG", "RGB", None),
            "rgba.tif": ("TIFF", "RGBA", "8"), "rgba.tga": ("TARGA", "RGBA", None)}
 
 

@@ -71,25 +71,32 @@ def texels(image, warn=_quiet, owner: str = "", name: str | None = None) -> Texe
     buf = buf.reshape(h, w, channels)
     rgba = np.ones((h, w, 4), np.float32)
     rgba[..., :channels if channels == 4 else 3] = buf
-    if image.is_float:
-        _clean(rgba)
     space, alpha_mode = image.colorspace_settings.name, image.alpha_mode
     data = space in _DATA
-    if not image.is_float:
-        values = np.rint(rgba * 255.0).astype(np.int32)
-        if channels == 4 and not data and alpha_mode not in ("CHANNEL_PACKED", "NONE"):
-            values[..., :3] = values[..., :3] * values[..., 3:] // 255
-        rgba = (values / 255.0).astype(np.float32)
+    associate = channels == 4 and not data and alpha_mode not in ("CHANNEL_PACKED", "NONE")
+    srgb = False
+    if image.is_float:
+        _clean(rgba)
+        if space in _SRGB and _read_by_cycles(image) and image.file_format == "PNG":
+            rgba, srgb = _ushort_srgb(rgba, associate), True
+    else:
+        rgba, srgb = _bytes(rgba, associate), space in _SRGB
         if space not in _SRGB | _DATA | _LINEAR:
             warn(f"{owner}image '{image.name}' is in colour space '{space}', which Ember does not convert "
                  "for byte images: its values are read as linear")
-    srgb = not image.is_float and space in _SRGB
-    if image.is_float and space in _SRGB and _read_by_cycles(image) and image.file_format == "PNG":
-        rgba, srgb = _ushort_srgb(rgba, channels == 4 and alpha_mode not in ("CHANNEL_PACKED", "NONE")), True
     if alpha_mode == "NONE":
-        rgba[..., 3] = 1.0
+        rgba[..., 3] = np.iinfo(rgba.dtype).max if rgba.dtype.kind == "u" else 1.0
     associated = not data and alpha_mode not in ("CHANNEL_PACKED", "NONE")
     return Texels(name or image.name, rgba, srgb=srgb, associated=associated)
+
+
+def _bytes(rgba, associate: bool) -> np.ndarray:
+    """A byte image's 8-bit values (uint8), premultiplied in 8 bits, (c a) / 255 rounded down,
+    where Cycles associates alpha (blender/image.cpp: Blender's byte buffers are straight)."""
+    values = np.rint(rgba * 255.0).astype(np.int32)
+    if associate:
+        values[..., :3] = values[..., :3] * values[..., 3:] // 255
+    return values.astype(np.uint8)
 
 
 def _read_by_cycles(image) -> bool:
@@ -99,7 +106,7 @@ def _read_by_cycles(image) -> bool:
 
 
 def _ushort_srgb(rgba, associate: bool) -> np.ndarray:
-    """A 16-bit sRGB PNG as Cycles keeps it: the file's 16-bit sRGB values, converted by the
+    """A 16-bit sRGB PNG as Cycles keeps it (uint16): the file's 16-bit sRGB values, converted by the
     kernel after interpolating, premultiplied in 16 bits, (c a) / 65535 rounded down. Blender
     holds them as linear floats (premultiplied where there is alpha): encoded back to sRGB and
     rounded to 16 bits, they are the file's values."""
@@ -111,7 +118,7 @@ def _ushort_srgb(rgba, associate: bool) -> np.ndarray:
     values = np.rint(np.clip(np.concatenate([encoded, a], axis=-1), 0.0, 1.0) * 65535.0).astype(np.int64)
     if associate:
         values[..., :3] = values[..., :3] * values[..., 3:] // 65535
-    return (values / 65535.0).astype(np.float32)
+    return values.astype(np.uint16)
 
 
 def _clean(rgba) -> None:

@@ -24,10 +24,11 @@ MISSING = np.array([1.0, 0.0, 1.0, 1.0])
 
 @dataclass(frozen=True, eq=False)
 class Texels:
-    """An image's texels as Cycles keeps them for its kernel. `pixels`: (height, width, 4)
-    float32, row 0 at the bottom; `srgb`: the texels are 8-bit sRGB values (k / 255) that the
-    kernel interpolates as they are and converts to linear after the lookup (Cycles'
-    NODE_IMAGE_COMPRESS_AS_SRGB), else they are scene linear; `associated`: the colour is
+    """An image's texels as Cycles keeps them for its kernel. `pixels`: (height, width, 4), row 0
+    at the bottom: float32, or uint8 (uint16) values k read as k / 255 (k / 65535), as Cycles
+    keeps byte (ushort) textures in a quarter (half) of the memory; `srgb`: the texels are sRGB
+    values that the kernel interpolates as they are and converts to linear after the lookup
+    (Cycles' NODE_IMAGE_COMPRESS_AS_SRGB), else they are scene linear; `associated`: the colour is
     associated with alpha, and an Image Texture whose Alpha output is linked divides it out
     (NODE_IMAGE_ALPHA_UNASSOCIATE: not for data colour spaces, Channel Packed or None alpha).
     Compared by identity (a node's props stay hashable): one Texels per image per export."""
@@ -67,10 +68,17 @@ def _read(pixels, ix, iy, extension: str):
     h, w = pixels.shape[:2]
     flat = pixels.reshape(h * w, -1)
     if extension != "CLIP":
-        return np.take(flat, iy * w + ix, axis=0).astype(np.float64)
+        return _float(np.take(flat, iy * w + ix, axis=0))
     inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
-    texels = np.take(flat, np.clip(iy, 0, h - 1) * w + np.clip(ix, 0, w - 1), axis=0).astype(np.float64)
+    texels = _float(np.take(flat, np.clip(iy, 0, h - 1) * w + np.clip(ix, 0, w - 1), axis=0))
     return np.where(inside[..., None], texels, 0.0)
+
+
+def _float(texels) -> np.ndarray:
+    """Texels as float64: integer ones k as k / 255 or k / 65535."""
+    if texels.dtype.kind == "u":
+        return texels * (1.0 / np.iinfo(texels.dtype).max)
+    return texels.astype(np.float64)
 
 
 def _cubic_weights(t):
@@ -116,7 +124,10 @@ def srgb_to_linear(c):
 @dataclass(frozen=True, eq=False)
 class Tiles:
     """A UDIM image: `tiles` ((number, Texels), ...), tile 1001 + u + 10 v covering
-    [u, u + 1) x [v, v + 1) of texture space, u in 0..9."""
+    [u, u + 1) x [v, v + 1) of texture space, u in 0..9. Every tile of the image is here; Cycles'
+    final renders drop the tiles no UV of the meshes using the material lies in, where the
+    Vector is unlinked or the UV map itself (ImageTextureNode::cull_tiles), which shows only
+    where a mapping moves those coordinates into another tile: Cycles reads magenta there."""
 
     name: str
     tiles: tuple
