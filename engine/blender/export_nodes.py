@@ -11,6 +11,9 @@ colour ramps, curves, images, objects, texture mappings).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Callable
+
 import bpy
 import numpy as np
 
@@ -45,6 +48,16 @@ def _base_props() -> set:
     if _BASE_PROPS is None:
         _BASE_PROPS = {p.identifier for p in bpy.types.ShaderNode.bl_rna.properties}
     return _BASE_PROPS
+
+
+@dataclass(frozen=True)
+class PropContext:
+    """What a PROPS exporter may need beyond the pointer's value: the bpy node holding it (an
+    image's ImageUser), the group nodes it sits in, and warn(text) for what it cannot export."""
+
+    node: object
+    path: tuple
+    warn: Callable
 
 
 def _props(node, context) -> tuple:
@@ -148,7 +161,7 @@ def _texture_mapping(mapping, context):
     return (mapping.vector_type, t, r, s, axes)
 
 
-# Pointer properties by name -> exporter(value, context) of plain data.
+# Pointer properties by name -> exporter(value, PropContext) of plain data.
 PROPS = {"color_ramp": _color_ramp, "image": image_texels, "mapping": _curve_mapping, "object": _object,
          "texture_mapping": _texture_mapping}
 
@@ -216,7 +229,8 @@ class _Export:
         inputs = tuple(self.source(s, path, depth) for s in node.inputs)
         label = "/".join(key[0] + (node.name,))
         outputs = tuple((s.identifier, socket_type(s)) for s in node.outputs)
-        self.nodes.append(Node(node.bl_idname, label, _props(node, path), inputs, outputs))
+        props = _props(node, PropContext(node, path, self.warn))
+        self.nodes.append(Node(node.bl_idname, label, props, inputs, outputs))
         self.index[key] = len(self.nodes) - 1
         return self.index[key]
 

@@ -31,12 +31,21 @@ class NodeType:
     (engine/nodes/state.py), or {output: fields} where they depend on the output read, or a
     function (node, outputs used) -> fields where they depend on the node's links; a node
     that reads none is evaluated at compile time when all its inputs are constant. `menu`:
-    Blender's Add menu it sits in (the coverage table)."""
+    Blender's Add menu it sits in (the coverage table). `uses_links`: evaluate takes a fourth
+    argument, the identifiers of the outputs the graph reads, for a node whose values depend on
+    which of its outputs are linked (Cycles decides some settings when it compiles a node)."""
 
     kind: str
     menu: str
     evaluate: Callable
     reads: object = ()
+    uses_links: bool = False
+
+    def run(self, node, inputs, state, used) -> dict:
+        """evaluate(), told the outputs used where it asks for them."""
+        if self.uses_links:
+            return self.evaluate(node, inputs, state, frozenset(used))
+        return self.evaluate(node, inputs, state)
 
     def fields(self, outputs, node=None) -> set:
         """The shading-state fields read when `outputs` (identifiers) of `node` are used."""
@@ -47,10 +56,11 @@ class NodeType:
         return set(self.reads)
 
 
-def node(kind: str, menu: str, reads=()):
+def node(kind: str, menu: str, reads=(), uses_links: bool = False):
     """Decorator: the function becomes a NodeType (collected by engine/nodes/registry.py)."""
     def make(fn):
-        return NodeType(kind, menu, fn, reads if isinstance(reads, dict) or callable(reads) else tuple(reads))
+        return NodeType(kind, menu, fn, reads if isinstance(reads, dict) or callable(reads) else tuple(reads),
+                        uses_links)
     return make
 
 

@@ -44,6 +44,8 @@ def environment(d, texels, projection: str, interpolation: str) -> np.ndarray:
     n = np.linalg.norm(d, axis=-1, keepdims=True)
     d = np.where(n != 0.0, d / np.where(n != 0.0, n, 1.0), d)
     u, v = (mirror_ball if projection == "MIRROR_BALL" else equirectangular)(d)
+    if isinstance(texels, image.Tiles):  # one image to Cycles: tile 1001 stands for a UDIM image
+        texels = texels.first()
     rgba = image.sample(texels, np.ravel(u), np.ravel(v), _INTERPOLATION.get(interpolation, "LINEAR"), "REPEAT")
     return rgba.reshape(np.shape(u) + (4,))
 

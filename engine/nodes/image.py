@@ -7,6 +7,9 @@ Texel (0, 0) is the bottom-left one and texel centres sit at ((i + 0.5) / width,
 coordinates are scaled to texels in float32, as the kernel does, so which texel Closest picks
 at a boundary is the kernel's choice. Smart interpolation is cubic here, as in Cycles' SVM on
 the CPU (interp's default case).
+
+A UDIM image is Tiles: Texels per tile, the tile chosen from the integer part of the texture
+coordinate (svm/image.h svm_node_tex_image).
 """
 from __future__ import annotations
 
@@ -21,15 +24,19 @@ MISSING = np.array([1.0, 0.0, 1.0, 1.0])
 
 @dataclass(frozen=True, eq=False)
 class Texels:
-    """An image's texels as Cycles keeps them for its kernel. `pixels`: (height, width, 4)
-    float32, row 0 at the bottom; `srgb`: the texels are 8-bit sRGB values (k / 255) that the
-    kernel interpolates as they are and converts to linear after the lookup (Cycles'
-    NODE_IMAGE_COMPRESS_AS_SRGB), else they are scene linear. Compared by identity (a node's
-    props stay hashable): one Texels per image per export."""
+    """An image's texels as Cycles keeps them for its kernel. `pixels`: (height, width, 4), row 0
+    at the bottom: float32, or uint8 (uint16) values k read as k / 255 (k / 65535), as Cycles
+    keeps byte (ushort) textures in a quarter (half) of the memory; `srgb`: the texels are sRGB
+    values that the kernel interpolates as they are and converts to linear after the lookup
+    (Cycles' NODE_IMAGE_COMPRESS_AS_SRGB), else they are scene linear; `associated`: the colour is
+    associated with alpha, and an Image Texture whose Alpha output is linked divides it out
+    (NODE_IMAGE_ALPHA_UNASSOCIATE: not for data colour spaces, Channel Packed or None alpha).
+    Compared by identity (a node's props stay hashable): one Texels per image per export."""
 
     name: str
     pixels: np.ndarray
     srgb: bool = False
+    associated: bool = True
 
     @property
     def size(self) -> tuple:
@@ -61,10 +68,17 @@ def _read(pixels, ix, iy, extension: str):
     h, w = pixels.shape[:2]
     flat = pixels.reshape(h * w, -1)
     if extension != "CLIP":
-        return np.take(flat, iy * w + ix, axis=0).astype(np.float64)
+        return _float(np.take(flat, iy * w + ix, axis=0))
     inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
-    texels = np.take(flat, np.clip(iy, 0, h - 1) * w + np.clip(ix, 0, w - 1), axis=0).astype(np.float64)
+    texels = _float(np.take(flat, np.clip(iy, 0, h - 1) * w + np.clip(ix, 0, w - 1), axis=0))
     return np.where(inside[..., None], texels, 0.0)
+
+
+def _float(texels) -> np.ndarray:
+    """Texels as float64: integer ones k as k / 255 or k / 65535."""
+    if texels.dtype.kind == "u":
+        return texels * (1.0 / np.iinfo(texels.dtype).max)
+    return texels.astype(np.float64)
 
 
 def _cubic_weights(t):
@@ -107,12 +121,54 @@ def srgb_to_linear(c):
                     np.power(np.maximum(c + 0.055, 0.0) * (1.0 / 1.055), 2.4))
 
 
-def sample(texels: Texels | None, x, y, interpolation: str, extension: str) -> np.ndarray:
-    """svm_image_texture: RGBA (N, 4) of an image at x, y; sRGB texels converted after the
-    lookup (alpha kept); no image: Cycles' magenta."""
+@dataclass(frozen=True, eq=False)
+class Tiles:
+    """A UDIM image: `tiles` ((number, Texels), ...), tile 1001 + u + 10 v covering
+    [u, u + 1) x [v, v + 1) of texture space, u in 0..9. Every tile of the image is here; Cycles'
+    final renders drop the tiles no UV of the meshes using the material lies in, where the
+    Vector is unlinked or the UV map itself (ImageTextureNode::cull_tiles), which shows only
+    where a mapping moves those coordinates into another tile: Cycles reads magenta there."""
+
+    name: str
+    tiles: tuple
+
+    def first(self) -> Texels | None:
+        """Tile 1001, the one a Box projection reads (Cycles culls the others), else None."""
+        return dict(self.tiles).get(1001)
+
+
+def sample(texels: Texels | None, x, y, interpolation: str, extension: str, unassociate: bool = False) -> np.ndarray:
+    """svm_image_texture: RGBA (N, 4) of an image at x, y; with `unassociate` (and associated
+    texels), the colour divided by alpha where alpha is neither 0 nor 1; sRGB texels converted
+    after that (alpha kept); no image: Cycles' magenta."""
     if texels is None:
         return np.broadcast_to(MISSING, (np.size(x), 4)).copy()
     rgba = lookup(texels.pixels, x, y, interpolation, extension)
+    if unassociate and texels.associated:
+        a = rgba[:, 3:]
+        partial = (a != 0.0) & (a != 1.0)
+        rgba[:, :3] = np.where(partial, rgba[:, :3] / np.where(partial, a, 1.0), rgba[:, :3])
     if texels.srgb:
         rgba[:, :3] = srgb_to_linear(rgba[:, :3])
     return rgba
+
+
+def sample_tiles(image, x, y, interpolation: str, extension: str, unassociate: bool = False) -> np.ndarray:
+    """svm_node_tex_image's lookup: a plain image (Texels or None) as sample(); for Tiles, each
+    point reads the tile its coordinate's integer parts name (truncated toward 0, so
+    -1 < u < 0 still reads tile 1001), at the coordinate less those parts; a point in no tile
+    of the image, or left of u = -1, below v = -1 or right of u = 10, is magenta."""
+    if not isinstance(image, Tiles):
+        return sample(image, x, y, interpolation, extension, unassociate)
+    x = np.atleast_1d(np.asarray(x, np.float64)).astype(F32)
+    y = np.atleast_1d(np.asarray(y, np.float64)).astype(F32)
+    tx, ty = np.trunc(x).astype(np.int64), np.trunc(y).astype(np.int64)
+    valid = (tx >= 0) & (ty >= 0) & (tx < 10)
+    number = np.where(valid, 1001 + 10 * ty + tx, -1)
+    out = np.broadcast_to(MISSING, (len(x), 4)).copy()
+    for tile, texels in image.tiles:
+        at = np.flatnonzero(number == tile)
+        if len(at):
+            out[at] = sample(texels, x[at] - F32((tile - 1001) % 10), y[at] - F32((tile - 1001) // 10),
+                             interpolation, extension, unassociate)
+    return out

@@ -66,7 +66,7 @@ class Program:
         env: dict = {}
         for op in self.ops:
             args = {name: _value(ref, env, src, dst) for name, ref, src, dst in op.inputs}
-            out = op.type.evaluate(op.node, args, state) if op.type is not None else {}
+            out = op.type.run(op.node, args, state, op.used) if op.type is not None else {}
             for name, kind in op.node.outputs:
                 env[(op.index, name)] = out[name] if name in out else _zero(kind)
             for name in op.used:  # lazily computed outputs that are read
@@ -108,7 +108,7 @@ def compile(graph: Graph, outputs: dict) -> Program:
         fields = kind.fields(used[i], node) if kind is not None else set()
         if kind is None or (not fields and all(isinstance(ref, _Const) for _, ref, _, _ in inputs)):
             args = {name: convert(ref.value, src, dst) for name, ref, src, dst in inputs}
-            out = kind.evaluate(node, args, None) if kind is not None else {}
+            out = kind.run(node, args, None, used[i]) if kind is not None else {}
             for name, socket_type in node.outputs:
                 value = out[name] if name in out else _zero(socket_type)
                 consts[(i, name)] = value() if callable(value) and name in used[i] else value
