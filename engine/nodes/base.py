@@ -33,13 +33,16 @@ class NodeType:
     that reads none is evaluated at compile time when all its inputs are constant. `menu`:
     Blender's Add menu it sits in (the coverage table). `uses_links`: evaluate takes a fourth
     argument, the identifiers of the outputs the graph reads, for a node whose values depend on
-    which of its outputs are linked (Cycles decides some settings when it compiles a node)."""
+    which of its outputs are linked (Cycles decides some settings when it compiles a node).
+    `notes(node)`: what this node of the graph renders differently from Cycles (approximations,
+    each a short phrase), reported once per material; None when it renders as Cycles does."""
 
     kind: str
     menu: str
     evaluate: Callable
     reads: object = ()
     uses_links: bool = False
+    notes: Callable = None
 
     def run(self, node, inputs, state, used) -> dict:
         """evaluate(), told the outputs used where it asks for them."""
@@ -56,11 +59,11 @@ class NodeType:
         return set(self.reads)
 
 
-def node(kind: str, menu: str, reads=(), uses_links: bool = False):
+def node(kind: str, menu: str, reads=(), uses_links: bool = False, notes: Callable = None):
     """Decorator: the function becomes a NodeType (collected by engine/nodes/registry.py)."""
     def make(fn):
         return NodeType(kind, menu, fn, reads if isinstance(reads, dict) or callable(reads) else tuple(reads),
-                        uses_links)
+                        uses_links, notes)
     return make
 
 

@@ -16,15 +16,18 @@ from .base import column, node, scalar, triple
 
 @dataclass(frozen=True)
 class Closure:
-    """kind: "emission", "background", or a BSDF's kind; weight: (N,3) or (3,) colour weight
-    (mix factors included); params: the node's inputs it needs, by name."""
+    """kind: "emission", "background", or a lobe's (engine/nodes/shaders.py); weight: (N,3) or
+    (3,) colour weight (mix factors included); params: the node's inputs it needs, by name; tag:
+    unique among the closures of one graph (the node's label and part), how layers name
+    the closure they lie under."""
 
     kind: str
     weight: np.ndarray
     params: dict = field(default_factory=dict)
+    tag: str = ""
 
     def scaled(self, f) -> "Closure":
-        return Closure(self.kind, triple(self.weight) * column(f), self.params)
+        return Closure(self.kind, triple(self.weight) * column(f), self.params, self.tag)
 
 
 def closures(value) -> tuple:

@@ -105,10 +105,14 @@ def compile(graph: Graph, outputs: dict) -> Program:
             inputs.append((socket.name, ref, src, socket.type))
         if kind is None:
             warnings.append(f"{node.label} ({node.kind}) is not supported: its outputs are zero")
+        elif kind.notes is not None:
+            warnings += [f"{node.label}: {text}" for text in kind.notes(node)]
         fields = kind.fields(used[i], node) if kind is not None else set()
         if kind is None or (not fields and all(isinstance(ref, _Const) for _, ref, _, _ in inputs)):
-            args = {name: convert(ref.value, src, dst) for name, ref, src, dst in inputs}
-            out = kind.run(node, args, None, used[i]) if kind is not None else {}
+            out = {}
+            if kind is not None:
+                args = {name: convert(ref.value, src, dst) for name, ref, src, dst in inputs}
+                out = kind.run(node, args, None, used[i])
             for name, socket_type in node.outputs:
                 value = out[name] if name in out else _zero(socket_type)
                 consts[(i, name)] = value() if callable(value) and name in used[i] else value

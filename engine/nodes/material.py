@@ -1,0 +1,125 @@
+"""A material's node graph as Ember renders it: its closures become lobes of the material table
+(engine/scene.py Materials), and what varies over the surface stays a program run per batch.
+
+compile_material() compiles the graph's Surface once and finds the closures it makes: which
+lobes (kind, layering, Fresnel model: fixed by the graph), and for each of their parameters
+whether it is a constant or varies from point to point (a texture, a procedural, a Fresnel
+mix). The lobes' constants fill the material table as any material's do; a material where
+nothing varies renders exactly as one written by hand. A material with varying parameters
+keeps its program, and evaluate() gives the values at a batch of shading points: per lobe its
+weight and parameters, the emitted radiance, the shading normal where a BSDF's Normal is
+linked (Normal Map, Bump).
+
+The closures are found by running the program once on a probe point (every state field at a
+plausible value): Mix and Add Shader keep both sides' closures whatever their factors, so the
+list of closures is the same at every point and only their values vary.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..scene import (FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET,
+                     LOBE_PHONG, LOBE_TRANSPARENT)
+from .closures import closures
+from .graph import Graph
+from .program import Program, compile
+from .state import ShadingState
+
+LOBE_OF = {"diffuse": LOBE_DIFFUSE, "phong": LOBE_PHONG, "microfacet": LOBE_MICROFACET,
+           "dielectric": LOBE_DIELECTRIC, "transparent": LOBE_TRANSPARENT}
+FRESNEL_OF = {"none": FRESNEL_NONE, "f82": FRESNEL_F82, "dielectric": FRESNEL_DIELECTRIC}
+# Lobe inputs a closure may carry, and whether each is a colour or vector (3 components).
+PARAMS = {"color": True, "tint": True, "roughness": False, "ior": False, "exponent": False}
+# One plausible shading point: what the probe run reads.
+_PROBE = dict(P=np.zeros((1, 3)), N=np.array([[0.0, 0.0, 1.0]]), Ng=np.array([[0.0, 0.0, 1.0]]),
+              I=np.array([[0.0, 0.0, 1.0]]), backfacing=np.zeros(1, bool), uv=np.full((1, 3), 0.5),
+              generated=np.full((1, 3), 0.5), object=np.zeros((1, 3)), camera=np.array([[0.0, 0.0, 1.0]]),
+              window=np.full((1, 3), 0.5), ray_length=np.ones(1), instancer_generated=np.zeros((1, 3)),
+              instancer_uv=np.zeros((1, 3)), world_from_object=np.eye(4)[None], object_from_world=np.eye(4)[None],
+              world_from_camera=np.eye(4), camera_from_world=np.eye(4))
+
+
+def probe_state() -> ShadingState:
+    return ShadingState(1, **_PROBE)
+
+
+def _varies(value, is_triple: bool) -> bool:
+    """Whether a value computed at the probe point is per point (it has the point axis)."""
+    return np.ndim(value) == (2 if is_triple else 1)
+
+
+@dataclass
+class MaterialProgram:
+    """program: the compiled Surface; lobes: the lobe rows (dicts as Materials.make takes them,
+    constants filled in, per-point ones at their probe value); varying[k]: the names of lobe
+    k's inputs that vary ("weight" among them); emission: (3,) constant, or None where it
+    varies; normal: a BSDF's Normal is linked; notes: what renders differently from Cycles."""
+
+    program: Program
+    closures: tuple  # the probe's closures that became lobes, in lobe order
+    lobes: list
+    varying: list
+    emission: np.ndarray | None
+    normal: bool
+    notes: tuple = field(default_factory=tuple)
+
+    @property
+    def constant(self) -> bool:
+        return self.emission is not None and not self.normal and not any(self.varying)
+
+    def evaluate(self, state: ShadingState):
+        """At the points of `state`: ([{input: (N,...) value} per lobe, with "weight" (N,3)],
+        emitted radiance (N,3), shading normal (N,3) or None)."""
+        n = state.n
+        made = closures(self.program.run(state)["surface"])
+        bsdfs = [c for c in made if c.kind in LOBE_OF]
+        lobes = []
+        for c, names in zip(bsdfs, self.varying):
+            values = {"weight": np.broadcast_to(c.weight, (n, 3))}
+            for name in names:
+                if name != "weight":
+                    values[name] = np.broadcast_to(c.params[name], (n, 3) if PARAMS[name] else (n,))
+            lobes.append(values)
+        emission = np.zeros((n, 3))
+        for c in made:
+            if c.kind == "emission":
+                emission = emission + c.weight
+        normal = next((np.broadcast_to(c.params["normal"], (n, 3)) for c in bsdfs if "normal" in c.params), None)
+        return lobes, emission, normal
+
+
+def compile_material(graph: Graph) -> MaterialProgram:
+    """The lobes, emission and program of a material's graph (its output "surface")."""
+    program = compile(graph, {"surface": "shader"})
+    made = closures(program.run(probe_state() if program.ops else None)["surface"])
+    bsdfs = [c for c in made if c.kind in LOBE_OF]
+    tags = {c.tag: k for k, c in enumerate(bsdfs)}
+    lobes, varying = [], []
+    for c in bsdfs:
+        lobe = dict(kind=LOBE_OF[c.kind], weight=_first(c.weight, True))
+        names = ["weight"] if _varies(c.weight, True) else []
+        for name, is_triple in PARAMS.items():
+            if name in c.params:
+                lobe[name] = _first(c.params[name], is_triple)
+                if _varies(c.params[name], is_triple):
+                    names.append(name)
+        if "fresnel" in c.params:
+            lobe["fresnel"] = FRESNEL_OF[c.params["fresnel"]]
+        if "layer" in c.params:
+            lobe["layer"] = tags[c.params["layer"]]
+        lobes.append(lobe)
+        varying.append(tuple(names))
+    emitters = [c.weight for c in made if c.kind == "emission"]
+    emission = None if any(_varies(w, True) for w in emitters) else sum((np.asarray(w) for w in emitters), np.zeros(3))
+    normal = any("normal" in c.params for c in bsdfs)
+    return MaterialProgram(program, tuple(bsdfs), lobes, varying, emission, normal, program.warnings)
+
+
+def _first(value, is_triple: bool):
+    """A constant as plain numbers; a per-point value at the probe point."""
+    a = np.asarray(value, np.float64)
+    if is_triple:
+        return tuple(float(v) for v in (a[0] if a.ndim == 2 else a))
+    return float(a[0] if a.ndim == 1 else a)

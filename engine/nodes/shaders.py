@@ -1,0 +1,235 @@
+"""Shader nodes: BSDFs as closures of Ember's lobes (engine/bsdf/lobes/), as Cycles builds its
+closures from them (svm/closure.h), and what Ember approximates.
+
+A BSDF node makes closures whose kind is a lobe's ("diffuse", "microfacet", ...), whose weight
+is its mixture weight and whose params are the lobe's inputs, per point or constant:
+  color, tint (3), roughness (Blender's, alpha = roughness^2), ior, exponent (Phong),
+  fresnel ("none", "f82", "dielectric": the microfacet lobe's model), normal (3, unnormalised
+  world direction where the node's Normal is linked), layer (the tag of the closure this one
+  lies under: it keeps 1 - that lobe's albedo, Cycles' closure layering).
+Every closure has a tag unique within its node (the node's label and its part), so layers
+survive Mix and Add Shader. A closure of constant weight at most CUTOFF is left out, as Cycles
+leaves out closures lighter than CLOSURE_WEIGHT_CUTOFF.
+
+`phong` (a prop the export sets on every BSDF node when the scene's Render Glossy with Phong
+is on) shades Glossy, Metallic and Principled reflection with the seed's Phong lobe, exponent
+n = 2 / alpha^2 - 2 with Beckmann alpha = roughness^2 (Mitsuba's mapping).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .base import column, node, scalar, triple
+from .closures import Closure
+
+CUTOFF = 1e-5  # Cycles' CLOSURE_WEIGHT_CUTOFF
+MAX_PHONG_EXPONENT = 1e6  # Phong stays accurate up to here (engine/bsdf/phong.py)
+ONES = np.ones(3)
+
+
+def _closure(kind: str, weight, tag: str, **params) -> tuple:
+    """(Closure,) unless its weight is a constant at most CUTOFF."""
+    weight = triple(weight)
+    if weight.ndim == 1 and weight.max() <= CUTOFF:
+        return ()
+    return (Closure(kind, weight, params, tag),)
+
+
+def _normal(node, inputs) -> dict:
+    """{"normal": the Normal input} where the node's Normal is linked, else {} (the shading
+    normal stays the interpolated one)."""
+    socket = node.input("Normal")
+    return {"normal": triple(inputs["Normal"])} if socket is not None and socket.link is not None else {}
+
+
+def f0_from_ior(eta):
+    return ((eta - 1.0) / (eta + 1.0)) ** 2
+
+
+def ior_from_f0(f0):
+    r = np.sqrt(np.clip(f0, 0.0, 0.999999))
+    return (1.0 + r) / (1.0 - r)
+
+
+def phong_exponent(roughness):
+    """Blender roughness -> Phong n = 2 / alpha^2 - 2 with Beckmann alpha = roughness^2, at most
+    MAX_PHONG_EXPONENT (a mirror)."""
+    alpha2 = np.maximum(scalar(roughness), 0.0) ** 4
+    mirror = alpha2 * (MAX_PHONG_EXPONENT + 2.0) <= 2.0
+    return np.where(mirror, MAX_PHONG_EXPONENT, 2.0 / np.where(mirror, 1.0, alpha2) - 2.0)
+
+
+def _phong(weight, tag, kd, ks, roughness, **params) -> tuple:
+    """The Phong lobe with kd + ks <= 1 per channel (scaled down where it is more)."""
+    kd, ks = np.maximum(triple(kd), 0.0), np.maximum(triple(ks), 0.0)
+    s = np.maximum(np.max(kd + ks, axis=-1), 1.0)
+    return _closure("phong", weight, tag, color=kd / column(s), tint=ks / column(s),
+                    exponent=phong_exponent(roughness), **params)
+
+
+def _linked_or_set(node, name: str, default: float) -> bool:
+    socket = node.input(name)
+    return socket is not None and (socket.link is not None or float(np.max(socket.value)) != default)
+
+
+def _distribution_notes(node) -> list:
+    dist = node.prop("distribution", "GGX")
+    return [] if dist in ("GGX", "MULTI_GGX", "SHARP") else [f"{dist} distribution rendered as GGX"]
+
+
+def _diffuse_notes(node) -> list:
+    return ["Oren-Nayar roughness rendered Lambertian"] if _linked_or_set(node, "Roughness", 0.0) else []
+
+
+@node("ShaderNodeBsdfDiffuse", "Shader", notes=_diffuse_notes)
+def diffuse(node, inputs, state):
+    return {"BSDF": _closure("diffuse", ONES, node.label, color=triple(inputs["Color"]), **_normal(node, inputs))}
+
+
+def _glossy_notes(node) -> list:
+    notes = _distribution_notes(node)
+    if _linked_or_set(node, "Anisotropy", 0.0):
+        notes.append("anisotropy rendered isotropic")
+    return notes
+
+
+@node("ShaderNodeBsdfAnisotropic", "Shader", notes=_glossy_notes)
+def glossy(node, inputs, state):
+    color, rough, normal = triple(inputs["Color"]), scalar(inputs["Roughness"]), _normal(node, inputs)
+    if node.prop("phong", False):
+        return {"BSDF": _phong(ONES, node.label, np.zeros(3), color, rough, **normal)}
+    return {"BSDF": _closure("microfacet", ONES, node.label, fresnel="none", color=color, roughness=rough, **normal)}
+
+
+def _metallic_notes(node) -> list:
+    notes = _distribution_notes(node)
+    if node.prop("fresnel_type", "F82") != "F82":
+        notes.append("physical conductor rendered as F82 with its normal-incidence colour")
+    return notes
+
+
+@node("ShaderNodeBsdfMetallic", "Shader", notes=_metallic_notes)
+def metallic(node, inputs, state):
+    rough, normal = scalar(inputs["Roughness"]), _normal(node, inputs)
+    if node.prop("fresnel_type", "F82") == "F82":
+        f0, tint = triple(inputs["Base Color"]), triple(inputs["Edge Tint"])
+    else:
+        n, k = triple(inputs["IOR"]), triple(inputs["Extinction"])
+        f0, tint = ((n - 1) ** 2 + k ** 2) / np.maximum((n + 1) ** 2 + k ** 2, 1e-12), ONES
+    f0 = np.clip(f0, 0.0, 1.0)
+    if node.prop("phong", False):
+        return {"BSDF": _phong(ONES, node.label, np.zeros(3), f0, rough, **normal)}
+    return {"BSDF": _closure("microfacet", ONES, node.label, fresnel="f82", color=f0, tint=np.clip(tint, 0.0, 1.0),
+                             roughness=rough, **normal)}
+
+
+def _refraction_notes(node) -> list:
+    notes = _distribution_notes(node)
+    if node.kind == "ShaderNodeBsdfRefraction":
+        notes.append("Refraction BSDF rendered as Glass (it gains the Fresnel reflection)")
+    return notes
+
+
+def _glass(node, inputs, state):
+    color = triple(inputs["Color"])
+    return {"BSDF": _closure("dielectric", ONES, node.label, color=color, tint=color,
+                             roughness=scalar(inputs["Roughness"]), ior=np.maximum(scalar(inputs["IOR"]), 1e-5),
+                             **_normal(node, inputs))}
+
+
+glass = node("ShaderNodeBsdfGlass", "Shader", notes=_refraction_notes)(_glass)
+refraction = node("ShaderNodeBsdfRefraction", "Shader", notes=_refraction_notes)(_glass)
+
+
+@node("ShaderNodeBsdfTransparent", "Shader")
+def transparent(node, inputs, state):
+    return {"BSDF": _closure("transparent", ONES, node.label, color=triple(inputs["Color"]))}
+
+
+@node("ShaderNodeHoldout", "Shader", notes=lambda node: ["Holdout rendered black"])
+def holdout(node, inputs, state):
+    return {"Holdout": ()}
+
+
+_PRINCIPLED_IGNORED = (("coat", "Coat Weight", 0.0), ("sheen", "Sheen Weight", 0.0),
+                       ("subsurface", "Subsurface Weight", 0.0), ("anisotropy", "Anisotropic", 0.0),
+                       ("diffuse roughness", "Diffuse Roughness", 0.0), ("thin film", "Thin Film Thickness", 0.0))
+
+
+def _principled_notes(node) -> list:
+    notes = _distribution_notes(node)
+    notes += [f"{label} ignored" for label, name, default in _PRINCIPLED_IGNORED if _linked_or_set(node, name, default)]
+    if node.input("Transmission Weight").link is not None or float(node.input("Transmission Weight").value) > 0:
+        tint = node.input("Specular Tint")
+        if tint.link is not None or not np.allclose(tint.value, 1.0):
+            notes.append("Specular Tint on transmission ignored")
+    return notes
+
+
+@node("ShaderNodeBsdfPrincipled", "Shader", notes=_principled_notes)
+def principled(node, inputs, state):
+    """Cycles' Principled BSDF (svm/closure.h), top layer first: transparency (1 - Alpha);
+    then, of what Alpha keeps, metallic (an F82 conductor: F0 = Base Color, F82 tint = Specular
+    Tint), transmission (glass tinted sqrt(Base Color)) of what metallic leaves, and a
+    dielectric specular layer (Fresnel of the IOR rescaled by Specular IOR Level, tinted by
+    Specular Tint) over a diffuse base of the rest; Emission Color x Strength."""
+    label = node.label
+    base = triple(inputs["Base Color"])
+    rough = scalar(inputs["Roughness"])
+    metal = np.clip(scalar(inputs["Metallic"]), 0.0, 1.0)
+    transmission = np.clip(scalar(inputs["Transmission Weight"]), 0.0, 1.0)
+    ior = np.maximum(scalar(inputs["IOR"]), 1e-5)
+    level = np.maximum(scalar(inputs["Specular IOR Level"]), 0.0)
+    spec_tint = np.maximum(triple(inputs["Specular Tint"]), 0.0)
+    alpha = np.clip(scalar(inputs["Alpha"]), 0.0, 1.0)
+    normal = _normal(node, inputs)
+    w = ONES
+    out = _closure("transparent", w * column(1.0 - alpha), label + "/alpha", color=ONES)
+    w = w * column(alpha)
+    emission = _closure("emission", w * triple(inputs["Emission Color"]) * column(inputs["Emission Strength"]),
+                        label + "/emission")
+    f0 = f0_from_ior(ior)
+    rescaled = level != 0.5  # Specular IOR Level rescales F0 and the IOR with it
+    f0 = np.where(rescaled, f0 * 2.0 * level, f0)
+    eta = np.where(rescaled, np.where(f0 > 0, ior_from_f0(f0), 1.0), ior)
+    eta = np.where(rescaled & (ior < 1.0), 1.0 / eta, eta)
+    if node.prop("phong", False):
+        ks = column(metal) * np.clip(base, 0, 1) + column((1 - metal) * (1 - transmission) * f0) * spec_tint
+        kd = column((1 - metal) * (1 - transmission)) * base * column(1 - f0)
+        out += _phong(w, label + "/phong", kd, ks, rough, **normal)
+        out += _closure("dielectric", w * column((1 - metal) * transmission), label + "/transmission",
+                        color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=np.sqrt(np.clip(base, 0.0, 1.0)),
+                        roughness=rough, ior=ior, **normal)
+        return {"BSDF": out + emission}
+    out += _closure("microfacet", w * column(metal), label + "/metallic", fresnel="f82", color=np.clip(base, 0, 1),
+                    tint=np.minimum(spec_tint, 1.0), roughness=rough, **normal)
+    w = w * column(1.0 - metal)
+    sqrt_base = np.sqrt(np.clip(base, 0.0, 1.0))
+    out += _closure("dielectric", w * column(transmission), label + "/transmission", color=sqrt_base,
+                    tint=sqrt_base, roughness=rough, ior=ior, **normal)
+    w = w * column(1.0 - transmission)
+    top = ()
+    if np.ndim(eta) or eta != 1.0:
+        top = _closure("microfacet", w, label + "/specular", fresnel="dielectric", tint=spec_tint,
+                       roughness=rough, ior=eta, **normal)
+    layer = {"layer": top[0].tag} if top else {}
+    out += top + _closure("diffuse", w, label + "/base", color=base, **layer, **normal)
+    return {"BSDF": out + emission}
+
+
+# Shaders Ember does not build yet: the diffuse of their Color (grey without one), with a note.
+_APPROXIMATED = ("ShaderNodeBsdfSheen", "ShaderNodeBsdfToon", "ShaderNodeBsdfTranslucent", "ShaderNodeBsdfHair",
+                 "ShaderNodeBsdfHairPrincipled", "ShaderNodeSubsurfaceScattering", "ShaderNodeBsdfRayPortal",
+                 "ShaderNodeEeveeSpecular")
+
+
+def _as_diffuse(node, inputs, state):
+    color = triple(inputs["Color"]) if "Color" in inputs else np.full(3, 0.8)
+    out = node.outputs[0][0] if node.outputs else "BSDF"
+    return {out: _closure("diffuse", ONES, node.label, color=color, **_normal(node, inputs))}
+
+
+APPROXIMATED = tuple(node(kind, "Shader", notes=lambda node: ["rendered as diffuse"])(_as_diffuse)
+                     for kind in _APPROXIMATED)
+
+NODES = (diffuse, glossy, metallic, glass, refraction, transparent, holdout, principled) + APPROXIMATED
