@@ -30,7 +30,7 @@ from .film import Film
 from .integrators.base import Stage
 from .parallel import workers
 from .parallel.shared import Publisher
-from .runner import Progress, Runner
+from .runner import Runner
 from .scene import Scene, recentred
 from . import tracer as tracer_mod
 from .tracer import Tracer

@@ -8,7 +8,6 @@ from __future__ import annotations
 import dataclasses
 import time
 
-import numpy as np
 
 from .accel import Accel
 from .allocator import keep_freed_memory
