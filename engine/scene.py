@@ -77,6 +77,10 @@ class Mesh:
     objects (B+1,) int64 triangle offsets of the exported objects (each triangle range uses
     its own vertices), or None: engine/accel.py gives big objects an Embree scene of their
     own, kept when only other objects change.
+    object_matrix (B,4,4) float64 world_from_object of each object (column vectors, in the
+    render's world: shifted with the vertices, see recentred); object_texspace (B,2,3) its
+    texture space (location, size) in object space: Generated maps location - size ..
+    location + size to [0, 1]^3. None with `objects`.
     """
 
     vertices: np.ndarray
@@ -86,6 +90,8 @@ class Mesh:
     uvs: np.ndarray = None
     visibility: np.ndarray = None
     objects: np.ndarray = None
+    object_matrix: np.ndarray = None
+    object_texspace: np.ndarray = None
 
     def __post_init__(self):
         if self.uvs is None:
@@ -140,6 +146,11 @@ class Materials:
     image i has image_size[i] = (width, height) texels from image_offset[i]; image_srgb (I,)
     bool: texels are sRGB-encoded bytes / 255, decoded after interpolation (as Cycles);
     image_names.
+
+    graphs: per material, its shader node graph (engine/nodes/graph.py) where parameters vary
+    over the surface (textures, procedurals, Fresnel mixes), else None; empty: none at all.
+    Such a material's lobes are its graph's closures in order (engine/nodes/material.py), with
+    their values at the probe point in the table; a node program gives them per point.
     """
 
     kind: np.ndarray
@@ -174,6 +185,7 @@ class Materials:
     image_offset: np.ndarray = None
     image_srgb: np.ndarray = None
     image_names: tuple = ()
+    graphs: tuple = ()
 
     def __post_init__(self):
         # Tables built without lobes (kind + base_color only) get them from their kind.
@@ -253,6 +265,7 @@ class Materials:
             image_offset=np.array(offsets, np.int64),
             image_srgb=np.array([bool(im.get("srgb", False)) for im in images], bool),
             image_names=tuple(im.get("name", f"image{i}") for i, im in enumerate(images)),
+            graphs=tuple(r.get("graph") for r in rows) if any(r.get("graph") is not None for r in rows) else (),
         )
         mats.check()
         return mats
@@ -496,6 +509,8 @@ def digest(value) -> str:
         elif isinstance(value, np.ndarray):
             h.update(f"{value.dtype}{value.shape}".encode())
             h.update(np.ascontiguousarray(value).tobytes())
+        elif dataclasses.is_dataclass(value):  # node graphs inside a part: their arrays in full
+            feed(f"{key}:{type(value).__name__}", to_plain(value))
         else:
             h.update(repr(value).encode())
 
@@ -578,6 +593,10 @@ def recentred(scene: Scene, origin=None, mesh_done: bool = False) -> Scene:
     mesh = scene.mesh
     if not mesh_done:
         mesh = dataclasses.replace(mesh, vertices=(mesh.vertices.astype(np.float64) - origin).astype(np.float32))
+        if mesh.object_matrix is not None:
+            matrix = mesh.object_matrix.copy()
+            matrix[:, :3, 3] -= origin
+            mesh = dataclasses.replace(mesh, object_matrix=matrix)
     lights = dataclasses.replace(scene.lights, position=scene.lights.position - origin)
     m = np.array(scene.camera.world_from_camera, np.float64)
     m[:3, 3] -= origin

@@ -316,7 +316,7 @@ def test_material_mapping_and_fallback_warnings():
     np.testing.assert_allclose(mats.emission[idx["Plain"]], [2.0, 2.0, 0.0])
     # Exactly one warning for the image node without an image, naming material and node.
     assert len([w for w in warnings if "'Textured'" in w]) == 1
-    assert any("Image Texture" in w and "no image" in w for w in warnings if "'Textured'" in w)
+    assert any("Image Texture" in w and "no image" in w and "magenta" in w for w in warnings if "'Textured'" in w)
     assert len(warnings) == 1
     # Per-face mapping: 2 triangles per face, object a then b.
     centre = m.vertices[m.triangles].mean(1)

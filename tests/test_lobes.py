@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from ember.engine.bsdf import fresnel, lobes
-from ember.engine.bsdf.lobes import base
+from ember.engine.bsdf.lobes import base, inputs
 from ember.engine.scene import (FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE,
                                 LOBE_KINDS, LOBE_MICROFACET, LOBE_PHONG, LOBE_TRANSPARENT, MAT_NODES, RAY_DIFFUSE,
                                 RAY_GLOSSY, RAY_TRANSMIT, Materials)
@@ -53,7 +53,7 @@ def _lobe_and_params(name, k):
     spec, theta, inside = CASES[name]
     m = Materials.make([dict(kind=MAT_NODES, lobes=[spec])])
     lobe = lobes.LOBES[spec["kind"]]
-    p = lobe.parameters(m, np.zeros(k, np.int64), np.arange(k), None, np.full(k, inside))
+    p = lobe.parameters(m, np.zeros(k, np.int64), np.arange(k), inputs.Sources(None), np.full(k, inside))
     t = np.radians(theta)
     wo = np.tile([np.sin(t) * np.cos(1.0), np.sin(t) * np.sin(1.0), np.cos(t)], (k, 1))  # azimuth 1 rad
     return lobe, p, wo, m
@@ -249,7 +249,7 @@ def test_total_internal_reflection_inside_smooth_glass():
     spec, _, _ = CASES["glass_smooth_inside"]
     lobe = lobes.LOBES[LOBE_DIELECTRIC]
     m = Materials.make([dict(kind=MAT_NODES, lobes=[spec])])
-    p = lobe.parameters(m, np.zeros(8, np.int64), np.arange(8), None, np.ones(8, bool))
+    p = lobe.parameters(m, np.zeros(8, np.int64), np.arange(8), inputs.Sources(None), np.ones(8, bool))
     t = np.radians(60)  # past the critical angle of 41.8 degrees
     wo = np.tile([np.sin(t), 0.0, np.cos(t)], (8, 1))
     s = lobe.sample(p, wo, np.zeros((8, 2)), np.linspace(0, 0.999, 8))

@@ -44,11 +44,12 @@ def _quiet(text: str) -> None:
 
 def image_texels(image, context=None) -> Texels | Tiles | None:
     """PROPS exporter of an image pointer (engine/blender/export_nodes.py)."""
-    if image is None:
-        return None
     warn = context.warn if context is not None else _quiet
     node = context.node if context is not None else None
     owner = f"{node.name}: " if node is not None else ""
+    if image is None:
+        warn(f"{owner}no image: magenta, as in Cycles")
+        return None
     if image.source == "TILED":
         return _tiles(image, warn, owner)
     if image.source == "SEQUENCE":

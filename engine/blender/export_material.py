@@ -41,7 +41,9 @@ from ..scene import (EXT_CLIP, EXT_EXTEND, EXT_MIRROR, EXT_REPEAT, FRESNEL_DIELE
                      FRESNEL_NONE, INTERP_CLOSEST, INTERP_LINEAR, LOBE_DIELECTRIC, LOBE_DIFFUSE,
                      LOBE_MICROFACET, LOBE_PHONG, LOBE_TRANSPARENT, MAT_DIFFUSE, MAT_EMISSION_ONLY,
                      MAT_NODES, MAT_PHONG, TEX_ALPHA, TEX_COLOR, Materials)
+from ..nodes.material import compile_material, with_phong
 from ..textures import LUMINANCE
+from .export_nodes import export_graph
 
 GREY = (0.8, 0.8, 0.8)
 DEFAULT_NAME = "default"
@@ -540,6 +542,10 @@ def material_row(mat, textures: _Textures, warn, phong: bool = False) -> dict:
                         lobes=[dict(kind=LOBE_TRANSPARENT, weight=(1.0, 1.0, 1.0), color=(1.0, 1.0, 1.0))])
     conv = _Converter(mat, textures, phong)
     conv.shader(surface, np.ones(3))
+    if conv.notes:  # what the lobe conversion approximates, the node evaluator may not
+        row = _node_row(mat, out, phong, warn)
+        if row is not None:
+            return row
     if follow_link(out.inputs["Displacement"]) is not None:
         conv.note("displacement (ignored)")
     if conv.notes:
@@ -552,6 +558,35 @@ def material_row(mat, textures: _Textures, warn, phong: bool = False) -> dict:
         row["kind"] = MAT_EMISSION_ONLY  # no BSDF: black, like Cycles without a surface shader
     elif _is_plain_diffuse(conv.lobes) and conv.normal is None:
         row["kind"] = MAT_DIFFUSE
+    return row
+
+
+def _node_row(mat, out, phong: bool, warn) -> dict | None:
+    """The material through the node evaluator (engine/nodes/): its lobes, and its graph where
+    they vary over the surface; None where the evaluator would approximate more than the
+    conversion above (a node it cannot build, or emission that varies over the surface, which
+    light sampling cannot follow yet)."""
+    notes = []
+    graph = export_graph({"surface": out.inputs["Surface"]}, notes.append)
+    if phong:
+        graph = with_phong(graph)
+    try:
+        compiled = compile_material(graph)
+    except (ValueError, KeyError, TypeError, IndexError) as exc:
+        notes.append(f"node graph not evaluated ({exc})")
+        compiled = None
+    if compiled is None or compiled.emission is None or any("not supported" in n for n in compiled.notes):
+        return None
+    notes += list(compiled.notes)
+    if follow_link(out.inputs["Displacement"]) is not None:
+        notes.append("displacement (ignored)")
+    if notes:
+        warn(f"Material '{mat.name}': approximated " + "; ".join(notes) + ".")
+    base = next((lobe.get("color") for lobe in compiled.lobes if lobe["kind"] == LOBE_DIFFUSE), (0.0, 0.0, 0.0))
+    row = dict(kind=MAT_NODES, base_color=tuple(base), emission=tuple(compiled.emission), name=mat.name,
+               lobes=compiled.lobes, graph=None if compiled.constant else graph)
+    if not compiled.lobes:
+        row["kind"] = MAT_EMISSION_ONLY
     return row
 
 

@@ -26,7 +26,7 @@ CHUNK_ELEMENTS = 1 << 21
 
 
 class _Proto:
-    __slots__ = ("positions", "triangles", "normals", "uvs", "slot", "n_dropped", "n_nonfinite", "name")
+    __slots__ = ("positions", "triangles", "normals", "uvs", "slot", "n_dropped", "n_nonfinite", "name", "texspace")
 
     def __init__(self, positions, triangles, normals, uvs, slot, n_dropped, n_nonfinite=0, name=""):
         self.positions = positions  # (V,3) float32 local
@@ -37,6 +37,7 @@ class _Proto:
         self.n_dropped = n_dropped  # zero-area triangles removed
         self.n_nonfinite = n_nonfinite  # triangles with a NaN/Inf vertex removed
         self.name = name  # the object it was first extracted from (for messages)
+        self.texspace = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])  # (location, size): Generated's box
 
 
 def _ints(collection, prop, n) -> np.ndarray:
@@ -127,13 +128,25 @@ def extract_mesh(ob) -> _Proto | None:
         corner = np.empty(n_loop * 3, np.float32)
         me.corner_normals.foreach_get("vector", corner)
         corner_uv = _corner_uvs(me, n_loop)
+        texspace = _texspace(ob, me)
     finally:
         ob.to_mesh_clear()
     tris = corner_vert[loops]
     normals = corner.reshape(-1, 3)[loops]
     proto = _finish_proto(pos.reshape(-1, 3), tris, normals, corner_uv[loops], slot)
-    proto.name = ob.name
+    proto.name, proto.texspace = ob.name, texspace
     return proto
+
+
+def _texspace(ob, me) -> np.ndarray:
+    """(2,3) the object's texture space (location, size: Generated maps location - size ..
+    location + size to [0, 1]), as Cycles reads it from the original mesh (its own box, or the
+    box auto texture space computes from the evaluated geometry)."""
+    data = getattr(ob, "data", None)
+    src = data if data is not None and hasattr(data, "texspace_location") else me
+    loc = np.array(src.texspace_location, np.float64)
+    size = np.array(src.texspace_size, np.float64)
+    return np.array([loc, np.where(size != 0.0, size, 1.0)])
 
 
 def _corner_uvs(me, n_loop) -> np.ndarray:
@@ -188,6 +201,13 @@ def _finish_proto(pos, tris, normals, uvs, slot) -> _Proto:
     return _Proto(pos, np.ascontiguousarray(tris, np.int32), np.ascontiguousarray(normals, np.float32),
                   np.ascontiguousarray(uvs, np.float32), np.ascontiguousarray(slot, np.int32), n_dropped,
                   n_nonfinite)
+
+
+def _shifted(M: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """World-from-object matrices (k,4,4) with the world moved by -shift (the render origin)."""
+    M = M.copy()
+    M[:, :3, 3] -= shift
+    return M
 
 
 def _normalize_rows(v: np.ndarray) -> np.ndarray:
@@ -306,7 +326,7 @@ class MeshCollector:
 
         default = None
         v0 = t0 = 0
-        starts = []
+        starts, object_matrix, object_texspace = [], [], []
         last = placed.get("mesh") if placed is not None else None
         was, now = (placed.get("groups", {}) if placed is not None else {}), {}
         for gi, (proto, mats, vis, M, det) in enumerate(plan):
@@ -325,6 +345,8 @@ class MeshCollector:
                 material[t0:t0 + nt] = last.material[pt:pt + nt]
                 visibility[t0:t0 + nt] = vis
                 starts.extend(t0 + T * np.arange(len(M)))
+                object_matrix.append(_shifted(M, shift))
+                object_texspace.append(np.broadcast_to(proto.texspace, (len(M), 2, 3)))
                 v0, t0 = v0 + nv, t0 + nt
                 continue
             if mats:
@@ -356,6 +378,8 @@ class MeshCollector:
                     Rinv = np.linalg.inv(R).astype(np.float32)
                     N = _normalize_rows(np.matmul(corners[None], Rinv)).reshape(k, T, 3, 3)
                 starts.extend(t0 + T * np.arange(k))  # each instance is an object (Mesh.objects)
+                object_matrix.append(_shifted(Mc, shift))
+                object_texspace.append(np.broadcast_to(proto.texspace, (k, 2, 3)))
                 offs = (v0 + V * np.arange(k, dtype=np.int64))[:, None, None]
                 neg = dc < 0
                 tri = np.where(neg[:, None, None], flipped_tris[None], proto.triangles[None]) + offs
@@ -381,7 +405,9 @@ class MeshCollector:
         everything = bool(np.all(visibility == RAY_ALL))  # the common case: no array to carry
         mesh = Mesh(vertices=vertices, triangles=triangles, normals=normals, material=material, uvs=uvs,
                     visibility=None if everything else visibility,
-                    objects=np.array(starts + [n_tri], np.int64) if starts else None)
+                    objects=np.array(starts + [n_tri], np.int64) if starts else None,
+                    object_matrix=np.concatenate(object_matrix) if starts else None,
+                    object_texspace=np.concatenate(object_texspace) if starts else None)
         if placed is not None:
             placed.update(mesh=mesh, groups=now)
         return mesh

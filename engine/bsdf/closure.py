@@ -34,7 +34,8 @@ from ..scene import Scene
 from ..vec import dot, gatherer, max3, normalize, scale, take
 from .lobes import LOBES, NEEDS_SIDE, RAYS, REFLECTION_CLASS, STRAIGHT, TRANSMISSION_CLASS, inputs
 from .lobes.base import LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT, Params, SurfaceLobe
-from .normal_map import normal_map
+from ..nodes.hits import SurfaceHits
+from .normal_map import normal_map, valid_reflection_normal
 
 __all__ = ["BSDFSample", "Closure", "LABEL_DIFFUSE", "LABEL_GLOSSY", "LABEL_TRANSMIT", "LABEL_TRANSPARENT"]
 
@@ -102,12 +103,14 @@ class Closure:
     reflects_only = False
 
     def __init__(self, scene: Scene, mat: np.ndarray, ns: np.ndarray, ng: np.ndarray, wo: np.ndarray,
-                 prim: np.ndarray, bary: np.ndarray, no_caustics=None, min_alpha=None):
+                 prim: np.ndarray, bary: np.ndarray, no_caustics=None, min_alpha=None, programs=None, p=None):
         """mat (N,) material per point; ns, ng (N,3) unit normals on wo's side; wo (N,3) toward
         the previous vertex; prim (N,) triangles and bary (N,3) barycentrics of the hits.
         no_caustics: None, or (drop_reflection, drop_refraction) (N,) bool each: points whose
         glossy reflection / refraction is left out (Cycles' caustics toggles).
-        min_alpha: None, or (N,) smallest GGX alpha of glossy and glass lobes (Filter Glossy)."""
+        min_alpha: None, or (N,) smallest GGX alpha of glossy and glass lobes (Filter Glossy).
+        programs: the scene's MaterialPrograms (engine/nodes/material.py), for materials whose
+        node graphs vary over the surface; p (N,3) the hit points they are evaluated at."""
         m = scene.materials
         self.m = m
         self.ng, self.wo = ng, wo
@@ -125,6 +128,14 @@ class Closure:
         textured = np.concatenate([m.lobe_color_tex[lobe], m.lobe_roughness_tex[lobe], m.lobe_opacity_tex[lobe],
                                    m.normal_tex[mat]])
         uv = textures.mesh_uv(scene.mesh.uvs, prim, bary) if np.any(textured >= 0) else None
+        values = {}
+        if programs and programs.has[mat].any():  # node programs: inputs per point, perhaps a normal
+            hits = SurfaceHits(scene, prim, bary, p, ns, ng, wo)
+            values, normal, rows = programs.pair_values(mat, self.pair_offset, len(lobe), hits)
+            if normal is not None:
+                ns = ns.copy()
+                ns[rows] = valid_reflection_normal(ng[rows], wo[rows], normalize(normal))
+        src = inputs.Sources(uv, values)
         mapped = np.any(m.normal_tex[mat] >= 0)
         outward = None  # the triangles' winding normals, only where glass or a normal map needs them
         if mapped or NEEDS_SIDE[kinds].any():
@@ -136,8 +147,8 @@ class Closure:
         # Points whose wo is behind the authored winding: glass sees them from inside.
         self.inside = dot(wo, outward) < 0 if outward is not None else np.zeros(n, bool)
 
-        self.groups, self.pair_pos = self._group_pairs(kinds, uv)
-        self.weight = inputs.weight(m, lobe, point, uv)
+        self.groups, self.pair_pos = self._group_pairs(kinds, src)
+        self.weight = inputs.weight(m, lobe, point, src)
         if no_caustics is not None:
             self._drop_caustics(*no_caustics)
         if min_alpha is not None:
@@ -167,18 +178,20 @@ class Closure:
         return len(self.ns)
 
     # --- the pairs, grouped by lobe kind -------------------------------------------------------
-    def _group_pairs(self, kinds: np.ndarray, uv):
+    def _group_pairs(self, kinds: np.ndarray, src):
         """([_Group] of the lobe kinds present `kinds`, with their pairs' parameters; pair_pos
-        (P,) a pair's row in its group, or None for one group: its rows are the pairs)."""
+        (P,) a pair's row in its group, or None for one group: its rows are the pairs).
+        src: where the pairs' inputs come from besides the table (inputs.Sources)."""
         lobe, point = self.pair_lobe, self.pair_point
         if len(kinds) == 1:
             kind = LOBES[kinds[0]]
-            return [_Group(kind, np.arange(len(lobe)), kind.parameters(self.m, lobe, point, uv, self.inside))], None
+            return [_Group(kind, np.arange(len(lobe)), kind.parameters(self.m, lobe, point, src, self.inside))], None
         groups, pos = [], np.empty(len(lobe), np.int64)
         for k in kinds:
             rows = np.flatnonzero(self.pair_kind == k)
             pos[rows] = np.arange(len(rows))
-            groups.append(_Group(LOBES[k], rows, LOBES[k].parameters(self.m, lobe[rows], point[rows], uv, self.inside)))
+            params = LOBES[k].parameters(self.m, lobe[rows], point[rows], src.take(rows), self.inside)
+            groups.append(_Group(LOBES[k], rows, params))
         return groups, pos
 
     def _params(self, g: _Group, pairs: np.ndarray) -> Params:

@@ -17,7 +17,8 @@ from .closure import LABEL_DIFFUSE, BSDFSample, Closure
 
 def plain_lambert_albedo(m) -> np.ndarray:
     """(M,3) albedo of materials that are one untextured diffuse lobe (no normal map, no
-    layering) or have no lobe at all (black, e.g. pure emitters), NaN for every other material."""
+    layering, no node program) or have no lobe at all (black, e.g. pure emitters), NaN for
+    every other material."""
     n_mat = len(m.kind)
     count = np.bincount(m.lobe_material, minlength=n_mat)
     first = np.searchsorted(m.lobe_material, np.arange(n_mat))
@@ -29,6 +30,9 @@ def plain_lambert_albedo(m) -> np.ndarray:
              & (m.lobe_layer[lobe] < 0) & (m.normal_tex < 0))
     albedo = np.where((count == 1)[:, None], m.lobe_weight[lobe] * m.lobe_color[lobe], 0.0)
     black = (count == 0) & (m.normal_tex < 0)
+    if m.graphs:  # a node program varies the material over the surface
+        varies = np.array([g is not None for g in m.graphs])
+        plain, black = plain & ~varies, black & ~varies
     return np.where((plain | black)[:, None], albedo, np.nan)
 
 
@@ -136,17 +140,17 @@ class _MixedClosure(Closure):
 
 
 def make_closure(scene: Scene, lambert_albedo: np.ndarray, mat, ns, ng, wo, prim, bary, no_caustics=None,
-                 min_alpha=None, frame=None):
+                 min_alpha=None, frame=None, programs=None, p=None):
     """LambertClosure when every point's material is plain Lambertian, else the general Closure
     (with LambertClosure's numbers at the plain points of a mixed batch: _MixedClosure).
     lambert_albedo: plain_lambert_albedo(scene.materials), computed once per render;
-    no_caustics, min_alpha: see Closure (nothing to drop or blur in a Lambertian);
-    frame: (t, b) = sampling.frame_from_z(ns), if known."""
+    no_caustics, min_alpha, programs, p: see Closure (nothing to drop, blur or evaluate in a
+    Lambertian); frame: (t, b) = sampling.frame_from_z(ns), if known."""
     albedo = take(lambert_albedo, mat)
     plain = ~np.isnan(albedo[:, 0])
     if plain.all():
         return LambertClosure(albedo, ns, ng, frame)
     if plain.any():
         return _MixedClosure(np.flatnonzero(plain), albedo, scene, mat, ns, ng, wo, prim, bary, no_caustics,
-                             min_alpha)
-    return Closure(scene, mat, ns, ng, wo, prim, bary, no_caustics, min_alpha)
+                             min_alpha, programs, p)
+    return Closure(scene, mat, ns, ng, wo, prim, bary, no_caustics, min_alpha, programs, p)

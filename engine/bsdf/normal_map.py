@@ -37,11 +37,11 @@ def normal_map(scene, mat: np.ndarray, ns: np.ndarray, ng: np.ndarray, wo: np.nd
     mapped = normalize(n_auth + (mapped - n_auth) * strength)
     ok = (det != 0)[:, None] & (dot(mapped, mapped) > 0)[:, None]
     out = ns.copy()
-    out[rows] = _valid_reflection_normal(ng[rows], wo[rows], np.where(ok, mapped, n_auth) * side)
+    out[rows] = valid_reflection_normal(ng[rows], wo[rows], np.where(ok, mapped, n_auth) * side)
     return out
 
 
-def _valid_reflection_normal(ng: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
+def valid_reflection_normal(ng: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Shading normals (K,3) tilted toward ng just enough that the mirror direction of wo stays
     min(0.9 wo.ng, 0.01) above the surface (Cycles bsdf_util.h ensure_valid_specular_reflection:
     the root of 4 a Nz^4 - 2 b Nz^2 + c = 0 in the plane of n and ng)."""

@@ -12,6 +12,7 @@ import numpy as np
 from .. import camera as camera_mod
 from .. import passes as passes_mod
 from ..bsdf.fast_path import make_closure, plain_lambert_albedo
+from ..nodes.material import MaterialPrograms
 from ..scene import RAY_CAMERA, Scene
 from ..vec import take
 from ..visibility import RayVisibility
@@ -27,6 +28,7 @@ class FirstHit:
         # Objects hidden from camera rays, holdouts (Cycles: alpha 0 there): only when the scene has them.
         self.visibility = RayVisibility(accel, scene.mesh) if scene.mesh.visibility is not None else None
         self.lambert_albedo = plain_lambert_albedo(scene.materials)
+        self.programs = MaterialPrograms.of(scene.materials)
         self.flat_normal = flat_normals(scene.mesh)
         m = np.asarray(scene.camera.world_from_camera, np.float64)
         self.eye = m[:3, 3]
@@ -70,7 +72,8 @@ class FirstHit:
             out["Normal"] = at_hits(ns, 3)
         if "Denoising Albedo" in self.wanted or "Denoising Normal" in self.wanted:
             mat = self.scene.mesh.material[prim]
-            bsdf = make_closure(self.scene, self.lambert_albedo, mat, ns, ng_f, -d_hit, prim, take(hit.b, rows))
+            bsdf = make_closure(self.scene, self.lambert_albedo, mat, ns, ng_f, -d_hit, prim, take(hit.b, rows),
+                                programs=self.programs, p=p)
             if "Denoising Albedo" in self.wanted:
                 out["Denoising Albedo"] = at_hits(np.clip(bsdf.reflectance, 0.0, 1.0), 3)
             if "Denoising Normal" in self.wanted:

@@ -26,6 +26,7 @@ from .. import camera as camera_mod
 from ..accel import Accel, offset_origin
 from ..bsdf.closure import LABEL_TRANSPARENT
 from ..bsdf.fast_path import make_closure, plain_lambert_albedo
+from ..nodes.material import MaterialPrograms
 from ..errors import Cancelled
 from ..lights.light_set import LightSet
 from ..rng import Sampler
@@ -68,6 +69,7 @@ class PathTracer:
         emissive = np.any(scene.materials.emission != 0, axis=1)  # per material; negative emission too
         self.emissive_prim = np.append(emissive[scene.mesh.material], False)  # per triangle; a miss (-1): False
         self.lambert_albedo = plain_lambert_albedo(scene.materials)
+        self.programs = MaterialPrograms.of(scene.materials)
         self.flat_normal = flat_normals(scene.mesh)  # None unless every triangle is flat-shaded
         self.flat_frames = flat_frames(scene.mesh, self.flat_normal, accel.ng)  # or None
         # Barycentrics serve smooth normals and the general closure (textures) only.
@@ -223,7 +225,7 @@ class PathTracer:
         paths.ng = ng_f
         b, options = paths.bounces, self.closure_options
         bsdf = make_closure(self.scene, self.lambert_albedo, paths.mat, ns, ng_f, wo, paths.prim, paths.bary,
-                            options.no_caustics(b), options.blur(b), frame)
+                            options.no_caustics(b), options.blur(b), frame, self.programs, paths.p)
         if tally and paths.depth == 0:
             tally.first_hit(paths.idx, bsdf)
         return bsdf

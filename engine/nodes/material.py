@@ -16,12 +16,12 @@ list of closures is the same at every point and only their values vary.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..scene import (FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET,
-                     LOBE_PHONG, LOBE_TRANSPARENT)
+                     LOBE_PHONG, LOBE_TRANSPARENT, part_digest)
 from .closures import closures
 from .graph import Graph
 from .program import Program, compile
@@ -117,9 +117,85 @@ def compile_material(graph: Graph) -> MaterialProgram:
     return MaterialProgram(program, tuple(bsdfs), lobes, varying, emission, normal, program.warnings)
 
 
+_PHONG_SHADERS = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfMetallic", "ShaderNodeBsdfPrincipled")
+
+
+def with_phong(graph: Graph) -> Graph:
+    """The graph with its glossy reflection shaded by the seed's Phong lobe (the scene's Render
+    Glossy with Phong): the `phong` prop set on its Glossy, Metallic and Principled nodes."""
+    nodes = tuple(replace(n, props=tuple(sorted(dict(n.props, phong=True).items())))
+                  if n.kind in _PHONG_SHADERS else n for n in graph.nodes)
+    return replace(graph, nodes=nodes)
+
+
 def _first(value, is_triple: bool):
     """A constant as plain numbers; a per-point value at the probe point."""
     a = np.asarray(value, np.float64)
     if is_triple:
         return tuple(float(v) for v in (a[0] if a.ndim == 2 else a))
     return float(a[0] if a.ndim == 1 else a)
+
+
+class MaterialPrograms:
+    """The node programs of a scene's materials (Materials.graphs), compiled once per process,
+    and their values at a batch of shading points for the closure."""
+
+    def __init__(self, materials):
+        self.compiled = {m: compile_material(g) for m, g in enumerate(materials.graphs) if g is not None}
+        self.has = np.zeros(len(materials.kind), bool)
+        self.has[list(self.compiled)] = True
+
+    def __bool__(self) -> bool:
+        return bool(self.compiled)
+
+    def pair_values(self, mat: np.ndarray, pair_offset: np.ndarray, n_pairs: int, hits):
+        """For the N points of a closure (mat (N,) their materials, pair_offset (N+1,) where each
+        point's lobes start in the pair table): ({input: (values (P,...), has (P,) bool)} of
+        the pairs whose material's program computes them, normal (N,3) with rows (K,) of the
+        points it replaces, or (None, None)). hits: a SurfaceHits of the N points."""
+        values, normal, normal_rows = {}, [], []
+        for m in np.unique(mat[self.has[mat]]):
+            mp = self.compiled[int(m)]
+            rows = np.flatnonzero(mat == m)
+            lobes, _, n = mp.evaluate(hits.take(rows).state())
+            for k, lobe in enumerate(lobes):
+                pairs = pair_offset[rows] + k
+                for name, v in lobe.items():
+                    if name not in values:
+                        width = (3,) if name == "weight" or PARAMS.get(name, False) else ()
+                        values[name] = (np.zeros((n_pairs,) + width), np.zeros(n_pairs, bool))
+                    a, has = values[name]
+                    a[pairs], has[pairs] = v, True
+            if n is not None:
+                normal.append(n)
+                normal_rows.append(rows)
+        if not normal:
+            return values, None, None
+        return values, np.concatenate(normal), np.concatenate(normal_rows)
+
+    def emission(self, mat: np.ndarray, hits) -> np.ndarray | None:
+        """(N,3) emitted radiance of N hits where some material's emission varies, else None."""
+        varying = [m for m in np.unique(mat[self.has[mat]]) if self.compiled[int(m)].emission is None]
+        if not varying:
+            return None
+        out = np.zeros((len(mat), 3))
+        for m in varying:
+            rows = np.flatnonzero(mat == m)
+            out[rows] = self.compiled[int(m)].evaluate(hits.take(rows).state())[1]
+        return out
+
+
+    @classmethod
+    def of(cls, materials) -> "MaterialPrograms":
+        """The programs of `materials`, compiled once per process for the same table."""
+        if not materials.graphs:
+            return cls(materials)
+        key = part_digest(materials)
+        if key not in _COMPILED:
+            if len(_COMPILED) >= 4:
+                _COMPILED.pop(next(iter(_COMPILED)))
+            _COMPILED[key] = cls(materials)
+        return _COMPILED[key]
+
+
+_COMPILED: dict = {}  # digest of a material table -> its MaterialPrograms (the last few)

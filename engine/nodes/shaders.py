@@ -170,7 +170,8 @@ def _principled_notes(node) -> list:
 def principled(node, inputs, state):
     """Cycles' Principled BSDF (svm/closure.h), top layer first: transparency (1 - Alpha);
     then, of what Alpha keeps, metallic (an F82 conductor: F0 = Base Color, F82 tint = Specular
-    Tint), transmission (glass tinted sqrt(Base Color)) of what metallic leaves, and a
+    Tint), transmission (glass whose refraction is tinted sqrt(Base Color), its reflection
+    white) of what metallic leaves, and a
     dielectric specular layer (Fresnel of the IOR rescaled by Specular IOR Level, tinted by
     Specular Tint) over a diffuse base of the rest; Emission Color x Strength."""
     label = node.label
@@ -198,15 +199,13 @@ def principled(node, inputs, state):
         kd = column((1 - metal) * (1 - transmission)) * base * column(1 - f0)
         out += _phong(w, label + "/phong", kd, ks, rough, **normal)
         out += _closure("dielectric", w * column((1 - metal) * transmission), label + "/transmission",
-                        color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=np.sqrt(np.clip(base, 0.0, 1.0)),
-                        roughness=rough, ior=ior, **normal)
+                        color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=ONES, roughness=rough, ior=ior, **normal)
         return {"BSDF": out + emission}
     out += _closure("microfacet", w * column(metal), label + "/metallic", fresnel="f82", color=np.clip(base, 0, 1),
                     tint=np.minimum(spec_tint, 1.0), roughness=rough, **normal)
     w = w * column(1.0 - metal)
-    sqrt_base = np.sqrt(np.clip(base, 0.0, 1.0))
-    out += _closure("dielectric", w * column(transmission), label + "/transmission", color=sqrt_base,
-                    tint=sqrt_base, roughness=rough, ior=ior, **normal)
+    out += _closure("dielectric", w * column(transmission), label + "/transmission",
+                    color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=ONES, roughness=rough, ior=ior, **normal)
     w = w * column(1.0 - transmission)
     top = ()
     if np.ndim(eta) or eta != 1.0:

@@ -36,6 +36,7 @@ its stdin close and exits.
 from __future__ import annotations
 
 import atexit
+import io
 import dataclasses
 import os
 import pathlib
@@ -68,12 +69,28 @@ def write_message(stream, obj) -> None:
     stream.flush()
 
 
+# This package's name here: `ember` in tests and render.py, Blender's `bl_ext.<repo>.ember`, or
+# a worker's private `ember_worker` (worker_main.py).
+_PACKAGE = __name__.rsplit(".engine.", 1)[0]
+
+
+class _Unpickler(pickle.Unpickler):
+    """Reads classes of this package (node graphs, image texels in a scene part) under the name
+    this process loaded it as, whatever the sender's."""
+
+    def find_class(self, module, name):
+        head, sep, tail = module.partition(".engine.")
+        if sep and head != _PACKAGE:
+            module = f"{_PACKAGE}.engine.{tail}"
+        return super().find_class(module, name)
+
+
 def read_message(stream):
     header = stream.read(_HEADER.size)
     if len(header) < _HEADER.size:
         return None
     (size,) = _HEADER.unpack(header)
-    return pickle.loads(stream.read(size))
+    return _Unpickler(io.BytesIO(stream.read(size))).load()
 
 
 def serve(fin, fout) -> None:

@@ -139,10 +139,11 @@ class SurfaceLobe(Lobe):
     straight = False
 
     @abc.abstractmethod
-    def parameters(self, m, lobe: np.ndarray, point: np.ndarray, uv, inside) -> SurfaceParams:
+    def parameters(self, m, lobe: np.ndarray, point: np.ndarray, src, inside) -> SurfaceParams:
         """Parameters of lobes `lobe` (K,) of the material table m at shading points `point`
-        (K,); uv (N,2) per point or None (no texture in the batch); inside (N,) bool per point:
-        wo is behind the triangle's winding normal (known where some lobe needs_side)."""
+        (K,); src: where the inputs come from besides the table (inputs.Sources: the points'
+        UVs for textures, node programs' values); inside (N,) bool per point: wo is behind the
+        triangle's winding normal (known where some lobe needs_side)."""
 
     def drop_caustics(self, p: SurfaceParams, reflection: np.ndarray, refraction: np.ndarray):
         """Cycles' caustics toggles: reflection, refraction (K,) bool: rows whose glossy

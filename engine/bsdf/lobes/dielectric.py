@@ -58,12 +58,12 @@ class Dielectric(SurfaceLobe):
     reflection_class, transmission_class = CLASS_GLOSSY, CLASS_TRANSMISSION
     needs_side = True
 
-    def parameters(self, m, lobe, point, uv, inside) -> DielectricParams:
-        color = inputs.color(m, lobe, point, uv)
-        roughness = inputs.roughness(m, lobe, point, uv)
+    def parameters(self, m, lobe, point, src, inside) -> DielectricParams:
+        color = inputs.color(m, lobe, point, src)
+        roughness = inputs.roughness(m, lobe, point, src)
         alpha = microfacet.alpha_from_roughness(roughness)
-        ior = m.lobe_ior[lobe]
-        return DielectricParams(color=color, delta=dielectric.is_delta(alpha, ior), tint=inputs.tint(m, lobe, color),
+        ior = inputs.ior(m, lobe, src)
+        return DielectricParams(color=color, delta=dielectric.is_delta(alpha, ior), tint=inputs.tint(m, lobe, color, src),
                                 roughness=roughness, alpha=alpha, ior=ior, inside=inside[point])
 
     def is_delta(self, p):

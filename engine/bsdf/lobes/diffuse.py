@@ -15,8 +15,8 @@ class Diffuse(SurfaceLobe):
     rays = RAY_DIFFUSE
     reflection_class = transmission_class = CLASS_DIFFUSE
 
-    def parameters(self, m, lobe, point, uv, inside) -> SurfaceParams:
-        return SurfaceParams(color=inputs.color(m, lobe, point, uv), delta=np.zeros(len(lobe), bool))
+    def parameters(self, m, lobe, point, src, inside) -> SurfaceParams:
+        return SurfaceParams(color=inputs.color(m, lobe, point, src), delta=np.zeros(len(lobe), bool))
 
     def albedo(self, p, wo):
         return p.color

@@ -66,12 +66,12 @@ class Microfacet(SurfaceLobe):
     rays = RAY_GLOSSY
     reflection_class = transmission_class = CLASS_GLOSSY
 
-    def parameters(self, m, lobe, point, uv, inside) -> MicrofacetParams:
-        color = inputs.color(m, lobe, point, uv)
-        roughness = inputs.roughness(m, lobe, point, uv)
+    def parameters(self, m, lobe, point, src, inside) -> MicrofacetParams:
+        color = inputs.color(m, lobe, point, src)
+        roughness = inputs.roughness(m, lobe, point, src)
         alpha = microfacet.alpha_from_roughness(roughness)
-        return MicrofacetParams(color=color, delta=microfacet.is_delta(alpha), tint=inputs.tint(m, lobe, color),
-                                roughness=roughness, alpha=alpha, ior=m.lobe_ior[lobe], fresnel=m.lobe_fresnel[lobe])
+        return MicrofacetParams(color=color, delta=microfacet.is_delta(alpha), tint=inputs.tint(m, lobe, color, src),
+                                roughness=roughness, alpha=alpha, ior=inputs.ior(m, lobe, src), fresnel=m.lobe_fresnel[lobe])
 
     def is_delta(self, p):
         return microfacet.is_delta(p.alpha)

@@ -26,10 +26,10 @@ class Phong(SurfaceLobe):
     # Its render passes count it glossy whole (kd included).
     reflection_class = transmission_class = CLASS_GLOSSY
 
-    def parameters(self, m, lobe, point, uv, inside) -> PhongParams:
-        color = inputs.color(m, lobe, point, uv)
-        return PhongParams(color=color, delta=np.zeros(len(lobe), bool), tint=inputs.tint(m, lobe, color),
-                           exponent=m.lobe_exponent[lobe])
+    def parameters(self, m, lobe, point, src, inside) -> PhongParams:
+        color = inputs.color(m, lobe, point, src)
+        return PhongParams(color=color, delta=np.zeros(len(lobe), bool), tint=inputs.tint(m, lobe, color, src),
+                           exponent=inputs.exponent(m, lobe, src))
 
     def albedo(self, p, wo):
         return phong.albedo(p.color, p.tint, p.exponent, wo)

@@ -15,8 +15,8 @@ class Transparent(SurfaceLobe):
     reflection_class = transmission_class = CLASS_TRANSMISSION
     straight = True
 
-    def parameters(self, m, lobe, point, uv, inside) -> SurfaceParams:
-        return SurfaceParams(color=inputs.color(m, lobe, point, uv), delta=np.ones(len(lobe), bool))
+    def parameters(self, m, lobe, point, src, inside) -> SurfaceParams:
+        return SurfaceParams(color=inputs.color(m, lobe, point, src), delta=np.ones(len(lobe), bool))
 
     def is_delta(self, p):
         return np.ones(len(p), bool)

@@ -28,6 +28,7 @@ from ... import rng
 from ...accel import bounding_radius, offset_origin
 from ...bsdf.closure import BSDFSample
 from ...bsdf.fast_path import make_closure, plain_lambert_albedo
+from ...nodes.material import MaterialPrograms
 from ...errors import Cancelled
 from ...lights.emission import PhotonEmitter
 from ...vec import dot, gatherer, max3, scale, take
@@ -146,6 +147,7 @@ class PhotonIntegrator(Integrator):
         self.emitter = PhotonEmitter(ctx.lights, self.center, self.radius)
         self.photon_tracer = PhotonTracer(ctx, self.emitter, s.max_depth)
         self.lambert_albedo = plain_lambert_albedo(self.scene.materials)
+        self.programs = MaterialPrograms.of(self.scene.materials)
         self.flat_normal = flat_normals(self.scene.mesh)
         self.stores = diffuse_materials(self.scene.materials)
         self.emissive_material = self.scene.materials.emission.mean(axis=1) > 0
@@ -242,7 +244,7 @@ class PhotonIntegrator(Integrator):
                 _accumulate(L, idx[r], take(beta, r) * take(scene.materials.emission, mat[r]))
             wo = -d
             ng_f, ns = shading_frame(mesh, self.flat_normal, prim, bary, ng, wo)
-            bsdf = make_closure(scene, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary)
+            bsdf = make_closure(scene, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary, programs=self.programs, p=p)
             ns = bsdf.ns
             diffuse = self.stores[mat] & bsdf.has_smooth
             x = np.flatnonzero(diffuse)
@@ -397,7 +399,7 @@ class PhotonIntegrator(Integrator):
                 break
             paths = paths.take(c) if len(c) < len(paths) else paths
             bsdf = make_closure(scene, self.lambert_albedo, paths.mat, paths.ns, paths.ng, -paths.d, paths.prim,
-                                paths.bary)
+                                paths.bary, programs=self.programs, p=paths.p)
             u = sampler.get(1 + paths.depth, paths.idx, 3)
             bs = bsdf.sample(u[:, :2], u[:, 2])
             ok = np.flatnonzero(bs.valid)
@@ -455,7 +457,7 @@ class PhotonIntegrator(Integrator):
                 Ly = E * take(self.lambert_albedo, paths.mat[y]) * (1.0 / np.pi)
             else:
                 bsdf_y = make_closure(self.scene, self.lambert_albedo, paths.mat[y], take(paths.ns, y), ny, take(wo, y),
-                                      paths.prim[y], take(paths.bary, y))
+                                      paths.prim[y], take(paths.bary, y), programs=self.programs, p=py)
                 Ly, _ = self.global_map.radiance(py, ny, lambda r, wi: bsdf_y.eval(wi, r)[0],
                                                  s.photon_k, self.r_global, kernel=s.photon_kernel, min_count=MIN_COUNT,
                                                  accept=self.visible(py, ny, self.global_map))

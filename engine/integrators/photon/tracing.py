@@ -20,6 +20,7 @@ import numpy as np
 
 from ...bsdf import lobes
 from ...bsdf.fast_path import make_closure, plain_lambert_albedo
+from ...nodes.material import MaterialPrograms
 from ...errors import Cancelled
 from ...scene import Materials
 from ...vec import dot, max3, scale, take
@@ -46,6 +47,7 @@ class PhotonTracer:
     def __init__(self, ctx, emitter, max_depth: int):
         self.scene, self.accel, self.emitter = ctx.scene, ctx.accel, emitter
         self.lambert_albedo = plain_lambert_albedo(ctx.scene.materials)
+        self.programs = MaterialPrograms.of(ctx.scene.materials)
         self.flat_normal = flat_normals(ctx.scene.mesh)
         self.stores = diffuse_materials(ctx.scene.materials)
         self.max_depth = max_depth
@@ -114,7 +116,7 @@ class PhotonTracer:
         """The photons' next bounce: the BSDF sampled in its adjoint form, Russian roulette
         with survival q = max(beta') / max(beta) (so max(flux) stays constant)."""
         bsdf = make_closure(self.scene, self.lambert_albedo, photons.mat, photons.ns, photons.ng, -photons.d,
-                            photons.prim, photons.bary)
+                            photons.prim, photons.bary, programs=self.programs, p=photons.p)
         u = sampler.get(FIRST_BOUNCE + photons.depth, photons.idx, 4)
         bs = bsdf.sample(u[:, :2], u[:, 2])
         w = bs.weight if bs.refraction_eta2 is None else scale(bs.weight, bs.refraction_eta2)
