@@ -15,6 +15,7 @@ from .integrators import create
 from .integrators.base import Stage, TraceContext
 from .integrators.first_hit import FirstHit
 from .lights.light_set import LightSet
+from .nodes.material import MaterialPrograms, SurfaceEmission
 from .passes import HIT as HIT_PASSES
 from .rng import Sampler
 from .scene import Scene, part_digests
@@ -49,8 +50,10 @@ class Tracer:
         else:
             # A transparent film hides the world from camera rays only; it still lights the scene.
             world = dataclasses.replace(scene.world, visible=False) if s.film_transparent else scene.world
+            programs = MaterialPrograms.of(scene.materials)
+            emitters = SurfaceEmission(scene, programs) if programs.varying_emission.any() else None
             self.lights = LightSet(scene.lights, scene.mesh, scene.materials, world, self.accel,
-                                   self.accel.scene_radius, s.strategy)
+                                   self.accel.scene_radius, s.strategy, surface_emission=emitters)
             BUILDS["lights"] += 1
         self.integrator = create(scene)
         self.integrator.build(TraceContext(scene, self.accel, self.lights, self.integrator.layout))

@@ -564,8 +564,8 @@ def material_row(mat, textures: _Textures, warn, phong: bool = False) -> dict:
 def _node_row(mat, out, phong: bool, warn) -> dict | None:
     """The material through the node evaluator (engine/nodes/): its lobes, and its graph where
     they vary over the surface; None where the evaluator would approximate more than the
-    conversion above (a node it cannot build, or emission that varies over the surface, which
-    light sampling cannot follow yet)."""
+    conversion above (a node it cannot build). A varying emission's table value is its mean
+    over probe points (engine/nodes/material.py): what says the material emits at all."""
     notes = []
     graph = export_graph({"surface": out.inputs["Surface"]}, notes.append)
     if phong:
@@ -575,7 +575,7 @@ def _node_row(mat, out, phong: bool, warn) -> dict | None:
     except (ValueError, KeyError, TypeError, IndexError) as exc:
         notes.append(f"node graph not evaluated ({exc})")
         compiled = None
-    if compiled is None or compiled.emission is None or any("not supported" in n for n in compiled.notes):
+    if compiled is None or any("not supported" in n for n in compiled.notes):
         return None
     notes += list(compiled.notes)
     if follow_link(out.inputs["Displacement"]) is not None:
@@ -583,7 +583,7 @@ def _node_row(mat, out, phong: bool, warn) -> dict | None:
     if notes:
         warn(f"Material '{mat.name}': approximated " + "; ".join(notes) + ".")
     base = next((lobe.get("color") for lobe in compiled.lobes if lobe["kind"] == LOBE_DIFFUSE), (0.0, 0.0, 0.0))
-    row = dict(kind=MAT_NODES, base_color=tuple(base), emission=tuple(compiled.emission), name=mat.name,
+    row = dict(kind=MAT_NODES, base_color=tuple(base), emission=tuple(compiled.emission_mean), name=mat.name,
                lobes=compiled.lobes, graph=None if compiled.constant else graph)
     if not compiled.lobes:
         row["kind"] = MAT_EMISSION_ONLY

@@ -37,7 +37,7 @@ from .base import Integrator, Stage
 from .light_passes import LightTally
 from .path_options import CAMERA_PATHS, Clamp, ClosureOptions, Gather, LightPaths, Strategy
 from .path_state import PathState, rows_of
-from .surface import flat_frame_rows, flat_frames, flat_normals, shading_frame, towards
+from .surface import emitted, flat_frame_rows, flat_frames, flat_normals, shading_frame, towards
 from ..layout import BatchLayout
 
 # Random-number groups (rng.Sampler): 0 the pixel filter, then per bounce _GROUPS groups:
@@ -186,6 +186,7 @@ class PathTracer:
             r = np.flatnonzero(emits)
             prim, pdf_prev = hit.prim[r], paths.pdf_prev[r]
             Le = take(self.materials.emission, self.mesh.material[prim])
+            Le = emitted(self.scene, self.programs, self.flat_normal, Le, hit.take(r), take(paths.d, r))
             cos_l = np.abs(dot(take(paths.d, r), hit.take(r).ng))
             pdf_light = lights.pdf_triangle_hit(prim, take(paths.o64, r), hit.t[r], cos_l)
             w = np.where(paths.no_mis[r], 1.0, pdf_prev / np.maximum(pdf_prev + pdf_light, 1e-300))

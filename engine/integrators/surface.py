@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..nodes.hits import SurfaceHits
 from ..sampling import frame_from_z
 from ..scene import Mesh
 from ..vec import dot, interpolate, length, scale, take
@@ -64,3 +65,19 @@ def flat_frame_rows(tables, prim: np.ndarray, ng: np.ndarray, wo: np.ndarray):
     >= 0 is the front)."""
     row = 2 * prim + (dot(ng, wo) < 0).view(np.int8)
     return tuple(take(table, row) for table in tables)
+
+
+def emitted(scene, programs, flat_normal, Le: np.ndarray, hit, d: np.ndarray) -> np.ndarray:
+    """Le (K,3) of K emissive hits (an accel Hit) of rays along d (K,3), with the node programs'
+    radiance where a material's emission varies over the surface (a textured emitter),
+    evaluated at the hit points; Le itself where none does."""
+    mat = scene.mesh.material[hit.prim]
+    rows = np.flatnonzero(programs.varying_emission[mat])
+    if len(rows) == 0:
+        return Le
+    h = hit.take(rows)
+    wo = -d[rows]
+    ng, ns = shading_frame(scene.mesh, flat_normal, h.prim, h.b, h.ng, wo)
+    Le = Le.copy()
+    Le[rows] = programs.emission(mat[rows], SurfaceHits(scene, h.prim, h.b, h.p, ns, ng, wo, h.t))
+    return Le

@@ -352,7 +352,11 @@ class PhotonEmitter:
             tb = sampling.frame_from_z(nrm)
             d = sampling.to_world(local, tb[0], tb[1], nrm)
             a = ls.tri_area[t]
-            flux = _colour(take(ls.tri_Le, t), np.where(local[:, 2] > 0, 2.0 * np.pi * a, 0.0))
+            Le = take(ls.tri_Le, t)
+            if ls.tri_varying is not None and ls.tri_varying[t].any():  # textured emitters: Le at the point
+                r = np.flatnonzero(ls.tri_varying[t])
+                Le[r] = ls.triangle_emission(t[r], b[r], o[r], d[r])
+            flux = _colour(Le, np.where(local[:, 2] > 0, 2.0 * np.pi * a, 0.0))
             return PhotonRays(o, d, flux, np.broadcast_to(ls.tri_prim[t], (n,)).copy())
         if code in (LIGHT_POINT, LIGHT_SPOT):
             c = take(an.position, i)

@@ -31,7 +31,7 @@ import numpy as np
 
 from .. import sampling
 from ..scene import LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, RAY_ALL, RAY_CAMERA, Lights, Materials, Mesh, World
-from ..vec import max3, scale, take
+from ..vec import dot, max3, scale, take
 from . import environment, light_tree, shapes
 
 # From this many finite lights on, a light tree chooses them (below: power alone, as the seed
@@ -78,9 +78,14 @@ class LightSample:
 
 class LightSet:
     def __init__(self, lights: Lights, mesh: Mesh, materials: Materials, world: World, accel, scene_radius: float,
-                 strategy: str = "mis", tree_min_lights: int | None = None):
+                 strategy: str = "mis", tree_min_lights: int | None = None, surface_emission=None):
         """strategy: Settings.strategy; under "mis" the environment's table is MIS-compensated.
-        tree_min_lights: the light tree's threshold (default TREE_MIN_LIGHTS)."""
+        tree_min_lights: the light tree's threshold (default TREE_MIN_LIGHTS).
+        surface_emission: for materials whose emission varies over the surface (textured
+        emitters), an object with `varying` (M,) bool per material and a call (prim, bary, p,
+        n, wo) -> (K,3) radiance at points of triangles (engine/nodes/material.py
+        SurfaceEmission), or None. Such triangles are chosen by their mean radiance over a few
+        points and sampled uniformly, and a sample's radiance is the material's at its point."""
         self.lights = lights
         self.n_analytic = len(lights)
         self.scene_radius = scene_radius
@@ -89,6 +94,12 @@ class LightSet:
         emissive = np.any(tri_Le != 0, axis=-1) & (accel.area > 0) if mesh.n_triangles else np.zeros(0, bool)
         self.tri_prim = np.flatnonzero(emissive)
         self.tri_Le = tri_Le[self.tri_prim]
+        self.surface_emission, self.tri_varying = surface_emission, None
+        if surface_emission is not None and len(self.tri_prim):
+            varying = surface_emission.varying[mesh.material[self.tri_prim]]
+            if varying.any():
+                self.tri_varying = varying
+                self.tri_Le[varying] = self._mean_emission(accel, self.tri_prim[varying])
         self.tri_area = accel.area[self.tri_prim]
         self.tri_v0 = accel.v0[self.tri_prim]
         self.tri_e1 = accel.e1[self.tri_prim]
@@ -304,7 +315,29 @@ class LightSet:
         row = take(self.tri_rows, t)
         y = row[:, 0:3] + scale(row[:, 3:6], b[:, 1]) + scale(row[:, 6:9], b[:, 2])
         wi, pdf = shapes.area_to_solid_angle(p, y, row[:, 9:12], row[:, 12], two_sided=True)
-        return shapes.ShapeSample(wi, take(self.tri_Le, t), pdf, y, np.ones(len(t), bool))
+        Le = take(self.tri_Le, t)
+        if self.tri_varying is not None:
+            r = np.flatnonzero(self.tri_varying[t])
+            if len(r):
+                Le[r] = self.triangle_emission(t[r], b[r], y[r], -wi[r])
+        return shapes.ShapeSample(wi, Le, pdf, y, np.ones(len(t), bool))
+
+    def triangle_emission(self, t: np.ndarray, b: np.ndarray, y: np.ndarray, wo: np.ndarray) -> np.ndarray:
+        """Radiance (K,3) leaving points y (K,3) (barycentrics b) of emissive triangles t (K,)
+        toward wo (K,3), where their material's emission varies over the surface."""
+        ng = take(self.tri_ng, t)
+        n = ng * np.where(dot(ng, wo) < 0, -1.0, 1.0)[:, None]  # two-sided: the side wo leaves
+        return self.surface_emission(self.tri_prim[t], b, y, n, wo)
+
+    def _mean_emission(self, accel, prim: np.ndarray) -> np.ndarray:
+        """(K,3) mean radiance of triangles prim (K,) over four stratified points each."""
+        u = (np.array([[0.25, 0.25], [0.75, 0.25], [0.25, 0.75], [0.75, 0.75]]))
+        b = np.tile(sampling.sample_uniform_triangle(u), (len(prim), 1))
+        tri = np.repeat(prim, len(u))
+        y = accel.v0[tri] + scale(accel.e1[tri], b[:, 1]) + scale(accel.e2[tri], b[:, 2])
+        ng = accel.ng[tri]
+        Le = self.surface_emission(tri, b, y, ng, ng)
+        return Le.reshape(len(prim), len(u), 3).mean(axis=1)
 
     # ---- emission found by rays (BSDF sampling or camera rays) -----------------------------
     def pdf_triangle_hit(self, prim: np.ndarray, p_prev: np.ndarray, t: np.ndarray, cos_light: np.ndarray):

@@ -24,6 +24,7 @@ from ..scene import (FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECT
                      LOBE_PHONG, LOBE_TRANSPARENT, part_digest)
 from .closures import closures
 from .graph import Graph
+from .hits import SurfaceHits
 from .program import Program, compile
 from .state import ShadingState
 
@@ -41,8 +42,31 @@ _PROBE = dict(P=np.zeros((1, 3)), N=np.array([[0.0, 0.0, 1.0]]), Ng=np.array([[0
               world_from_camera=np.eye(4), camera_from_world=np.eye(4))
 
 
-def probe_state() -> ShadingState:
-    return ShadingState(1, **_PROBE)
+PROBES = 16  # points a varying emission's mean is estimated from
+
+
+def probe_state(n: int = 1) -> ShadingState:
+    """n probe points: the first the plausible point above, the others spread over the unit
+    square of UV and Generated coordinates (and positions) by a 2D Halton sequence, so that a
+    texture's mean over them stands for its mean over the surface."""
+    if n == 1:
+        return ShadingState(1, **_PROBE)
+    k = np.arange(n)
+    u, v = _radical_inverse(k, 2), _radical_inverse(k, 3)
+    square = np.stack([u, v, np.full(n, 0.5)], axis=1)
+    fields = {name: np.repeat(value, n, axis=0) if np.ndim(value) and value.shape[0] == 1 else value
+              for name, value in _PROBE.items()}
+    fields.update(uv=square, generated=square, P=2.0 * square - 1.0, object=2.0 * square - 1.0)
+    return ShadingState(n, **fields)
+
+
+def _radical_inverse(k: np.ndarray, base: int) -> np.ndarray:
+    out, f, k = np.zeros(len(k)), 1.0 / base, k.copy()
+    while k.any():
+        out += f * (k % base)
+        k //= base
+        f /= base
+    return out
 
 
 def _varies(value, is_triple: bool) -> bool:
@@ -64,6 +88,7 @@ class MaterialProgram:
     emission: np.ndarray | None
     normal: bool
     notes: tuple = field(default_factory=tuple)
+    emission_mean: np.ndarray = field(default_factory=lambda: np.zeros(3))  # over PROBES points
 
     @property
     def constant(self) -> bool:
@@ -114,7 +139,12 @@ def compile_material(graph: Graph) -> MaterialProgram:
     emitters = [c.weight for c in made if c.kind == "emission"]
     emission = None if any(_varies(w, True) for w in emitters) else sum((np.asarray(w) for w in emitters), np.zeros(3))
     normal = any("normal" in c.params for c in bsdfs)
-    return MaterialProgram(program, tuple(bsdfs), lobes, varying, emission, normal, program.warnings)
+    mp = MaterialProgram(program, tuple(bsdfs), lobes, varying, emission, normal, program.warnings)
+    if emission is not None:
+        mp.emission_mean = emission
+    else:
+        mp.emission_mean = mp.evaluate(probe_state(PROBES))[1].mean(axis=0)
+    return mp
 
 
 _PHONG_SHADERS = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfMetallic", "ShaderNodeBsdfPrincipled")
@@ -144,6 +174,9 @@ class MaterialPrograms:
         self.compiled = {m: compile_material(g) for m, g in enumerate(materials.graphs) if g is not None}
         self.has = np.zeros(len(materials.kind), bool)
         self.has[list(self.compiled)] = True
+        # Materials whose emitted radiance varies over the surface (evaluated where it is found).
+        self.varying_emission = np.zeros(len(materials.kind), bool)
+        self.varying_emission[[m for m, mp in self.compiled.items() if mp.emission is None]] = True
 
     def __bool__(self) -> bool:
         return bool(self.compiled)
@@ -199,3 +232,17 @@ class MaterialPrograms:
 
 
 _COMPILED: dict = {}  # digest of a material table -> its MaterialPrograms (the last few)
+
+
+class SurfaceEmission:
+    """The radiance of surfaces whose material's emission varies (textured emitters), at points
+    of their triangles: what light sampling and photon emission read (LightSet)."""
+
+    def __init__(self, scene, programs: MaterialPrograms):
+        self.scene, self.programs = scene, programs
+        self.varying = programs.varying_emission  # (M,) bool per material
+
+    def __call__(self, prim, bary, p, n, wo) -> np.ndarray:
+        """(K,3) at points p (K,3) (barycentrics bary) of triangles prim (K,), the surface facing
+        n (K,3), seen from wo (K,3)."""
+        return self.programs.emission(self.scene.mesh.material[prim], SurfaceHits(self.scene, prim, bary, p, n, n, wo))

@@ -34,7 +34,7 @@ from ...lights.emission import PhotonEmitter
 from ...vec import dot, gatherer, max3, scale, take
 from ..base import Integrator, Stage
 from ..path_state import PathState
-from ..surface import flat_normals, shading_frame, towards
+from ..surface import emitted, flat_normals, shading_frame, towards
 from .photon_map import PhotonMap, RadiancePhotons
 from .tracing import PhotonTracer, diffuse_materials
 from ...layout import BatchLayout
@@ -241,7 +241,9 @@ class PhotonIntegrator(Integrator):
             emits = self.emissive_material[mat]
             if emits.any():
                 r = np.flatnonzero(emits)
-                _accumulate(L, idx[r], take(beta, r) * take(scene.materials.emission, mat[r]))
+                Le = emitted(scene, self.programs, self.flat_normal, take(scene.materials.emission, mat[r]),
+                             hit.take(keep[r]), take(d, r))
+                _accumulate(L, idx[r], take(beta, r) * Le)
             wo = -d
             ng_f, ns = shading_frame(mesh, self.flat_normal, prim, bary, ng, wo)
             bsdf = make_closure(scene, self.lambert_albedo, mat, ns, ng_f, wo, prim, bary, programs=self.programs, p=p)
@@ -428,7 +430,8 @@ class PhotonIntegrator(Integrator):
             cos_l = np.abs(dot(take(rays.d, r), hit.take(r).ng))
             pdf_light = lights.pdf_triangle_hit(prim, take(rays.o64, r), hit.t[r], cos_l)
             w = np.where(rays.no_mis[r], 1.0, pm / np.maximum(pm + pdf_light, 1e-300))
-            Le = take(self.scene.materials.emission, self.scene.mesh.material[prim])
+            Le = emitted(self.scene, self.programs, self.flat_normal, take(self.scene.materials.emission,
+                         self.scene.mesh.material[prim]), hit.take(r), take(rays.d, r))
             _accumulate(out, idx[r], take(rays.beta, r) * scale(Le, w))
 
     def _photon_radiance(self, out, paths: PathState, wo, stores) -> None:
