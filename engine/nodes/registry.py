@@ -3,9 +3,10 @@ them. The coverage table (README) and the compiler read it; a kind not listed he
 reported and falls back (engine/nodes/program.py)."""
 from __future__ import annotations
 
-from . import (closures, color, curves, environment, gabor, map_range, mapping, math, sky, textures, vector,
+from . import (attribute, closures, color, curves, displacement, environment, fresnel, gabor, geometry,
+               light_path, map_range, mapping, math, normal_map, object_info, sky, tangent, textures, vector,
                vector_math, voronoi)
 
 MODULES = (closures, math, vector, vector_math, map_range, mapping, color, curves, textures, voronoi, gabor, sky,
-           environment)
+           environment, geometry, object_info, attribute, fresnel, light_path, tangent, normal_map, displacement)
 REGISTRY = {t.kind: t for module in MODULES for t in module.NODES}
