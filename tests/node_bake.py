@@ -33,6 +33,7 @@ import bpy
 from ember.engine.blender.export_attributes import MeshAttributes, object_attribute
 from ember.engine.blender.export_nodes import export_graph
 from ember.engine.nodes import light_path
+from ember.engine.nodes.bump import bump_from_displacement
 from ember.engine.nodes.closures import closures
 from ember.engine.nodes.mesh_attributes import at_hits, object_random
 from ember.engine.nodes.program import compile
@@ -478,9 +479,21 @@ def bake(cases: dict, size: int = SIZE, view_from: str = "ABOVE_SURFACE", column
 
 
 def evaluate(output_node, state: ShadingState) -> np.ndarray:
-    """Ember's emitted radiance (N,3) of a material output node's Surface at the state's points."""
+    """Ember's emitted radiance (N,3) of a material output node's Surface at the state's points.
+    A material displaced as bump (Cycles' Bump Only, or Displacement and Bump) has its shading
+    normal set first by the bump of its Displacement, as Cycles does before the surface."""
     warnings = []
-    graph = export_graph({"surface": output_node.inputs["Surface"]}, warnings.append)
+    sockets = {"surface": output_node.inputs["Surface"]}
+    material = next((m for m in bpy.data.materials if m.node_tree == output_node.id_data), None)
+    method = getattr(material, "displacement_method", "BUMP")
+    if output_node.inputs["Displacement"].is_linked and method in ("BUMP", "BOTH"):
+        sockets["displacement"] = output_node.inputs["Displacement"]
+    graph = export_graph(sockets, warnings.append)
+    if "displacement" in sockets:
+        graph = bump_from_displacement(graph, object_space=method == "BOTH")
+        bumped = compile(graph, {"normal": "vector"})
+        assert not bumped.warnings, bumped.warnings
+        state = ShadingState(state.n, source=state._source, N=bumped.run(state)["normal"])
     program = compile(graph, {"surface": "shader"})
     assert not warnings and not program.warnings, warnings + list(program.warnings)
     total = np.zeros((state.n, 3))

@@ -3,10 +3,10 @@ them. The coverage table (README) and the compiler read it; a kind not listed he
 reported and falls back (engine/nodes/program.py)."""
 from __future__ import annotations
 
-from . import (attribute, closures, color, curves, displacement, environment, fresnel, gabor, geometry,
+from . import (attribute, bump, closures, color, curves, displacement, environment, fresnel, gabor, geometry,
                light_path, map_range, mapping, math, normal_map, object_info, sky, tangent, textures, vector,
                vector_math, voronoi)
 
 MODULES = (closures, math, vector, vector_math, map_range, mapping, color, curves, textures, voronoi, gabor, sky,
-           environment, geometry, object_info, attribute, fresnel, light_path, tangent, normal_map, displacement)
+           environment, geometry, object_info, attribute, fresnel, light_path, tangent, normal_map, bump, displacement)
 REGISTRY = {t.kind: t for module in MODULES for t in module.NODES}
