@@ -132,12 +132,11 @@ def random_per_island(vertex_count: int, edges, triangle_first_vertex) -> np.nda
 
 
 def hash_string(name: str) -> int:
-    """util/hash.h hash_string: i = i * 37 + c over the name's bytes as C chars (signed: a byte
-    past 127 counts as its negative, wrapped to 32 bits)."""
+    """util/hash.h hash_string: i = i * 37 + c over the name's UTF-8 bytes, wrapped to 32 bits
+    (each byte as an unsigned value: a name past ASCII shows it in Cycles' bake)."""
     i = 0
     for b in name.encode("utf-8"):
-        c = b if b < 128 else (b - 256) & 0xFFFFFFFF
-        i = (i * 37 + c) & 0xFFFFFFFF
+        i = (i * 37 + b) & 0xFFFFFFFF
     return i
 
 
