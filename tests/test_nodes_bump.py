@@ -130,6 +130,12 @@ def test_bump_attribute_heights_match_cycles():
     _check(_bake(cases), len(cases))
 
 
+# (strength, distance, filter width, invert, Normal linked)
+SETTINGS = ((0.5, 0.1, 0.1, False, False), (1.6, 0.1, 0.1, False, False), (-0.4, 0.1, 0.1, False, False),
+            (1.0, -0.3, 0.1, False, False), (1.0, 0.2, 0.1, True, False), (1.0, 0.1, 1.0, False, False),
+            (1.0, 0.1, 0.05, False, False), (1.0, 0.1, 3.0, True, False), (0.8, 0.15, 0.1, False, True))
+
+
 def test_bump_settings_match_cycles():
     """Strength (blended, beyond 1, negative: clamped to 0), Distance (negative too), Invert,
     Filter Width (the differential's size: a wrong footprint moves the samples elsewhere on the
@@ -138,11 +144,7 @@ def test_bump_settings_match_cycles():
     well within the tolerance at the stronger distances and the narrower filter."""
     cases = {}
     for shape, place in (("plane", {}), ("turned", TURNED), ("smooth", SHAPES["smooth"])):
-        for strength, distance, width, invert, normal in ((0.5, 0.1, 0.1, False, False), (1.6, 0.1, 0.1, False, False),
-                                                          (-0.4, 0.1, 0.1, False, False), (1.0, -0.3, 0.1, False, False),
-                                                          (1.0, 0.2, 0.1, True, False), (1.0, 0.1, 1.0, False, False),
-                                                          (1.0, 0.1, 0.05, False, False), (1.0, 0.1, 3.0, True, False),
-                                                          (0.8, 0.15, 0.1, False, True)):
+        for strength, distance, width, invert, normal in SETTINGS:
             name = f"{shape}_{strength}_{distance}_{width}_{invert}_{normal}"
             cases[name] = Placed(_bump("texcoord_Generated", strength, distance, width, invert, normal,
                                        frequency=(4.0, 3.0, 2.0)), **place)

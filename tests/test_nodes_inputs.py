@@ -38,9 +38,9 @@ def grid_mesh(cells: int = 6, height=_height, smooth: bool = False, islands: int
         step = cells // islands
         verts, faces, uvs = [], [], []
         for bi, bj in itertools.product(range(islands), repeat=2):
-            base = len(verts)
             index = {}
-            for i, j in itertools.product(range(bi * step, bi * step + step + 1), range(bj * step, bj * step + step + 1)):
+            rows, columns = range(bi * step, bi * step + step + 1), range(bj * step, bj * step + step + 1)
+            for i, j in itertools.product(rows, columns):
                 x, y = -1.0 + 2.0 * i / cells, -1.0 + 2.0 * j / cells
                 index[i, j] = len(verts)
                 verts.append((x, y, float(height(x, y)) if height is not None else 0.0))
@@ -48,7 +48,6 @@ def grid_mesh(cells: int = 6, height=_height, smooth: bool = False, islands: int
                 quad = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)]
                 faces.append(tuple(index[c] for c in quad))
                 uvs.append([(a / cells, b / cells) for a, b in quad])
-            del base
         mesh = bpy.data.meshes.new("grid")
         mesh.from_pydata(verts, [], faces)
         uv = mesh.uv_layers.new(name="UVMap")
@@ -137,14 +136,17 @@ def test_object_info_and_camera_data_match_cycles():
     for output in ("Location", "Color", "Alpha", "Object Index", "Material Index", "Random"):
         cases[f"object_{output}"] = Placed(_material_index(output), setup=_object_setup, **TURNED)
         cases[f"object_{output}_plain"] = _material_index(output)
+    # A name past ASCII: Cycles hashes its UTF-8 bytes as signed chars.
+    cases["object_Random_unicode"] = Placed(_output("ShaderNodeObjectInfo", "Random"),
+                                            setup=lambda ob: setattr(ob, "name", "Objekt_Größe_ø"))
     for output in ("View Vector", "View Z Depth", "View Distance"):
         cases[f"camera_{output}"] = _output("ShaderNodeCameraData", output)
         cases[f"camera_{output}_turned"] = Placed(_output("ShaderNodeCameraData", output), **TURNED)
         cases[f"camera_{output}_smooth"] = Placed(_output("ShaderNodeCameraData", output), mesh=grid_mesh(smooth=True))
     results = _bake(cases)
     _check(results, len(cases))
-    randoms = {results[f"object_Random{s}"][0][0, 0] for s in ("", "_plain")}
-    assert len(randoms) == 2  # the objects' names differ, and so do their random numbers
+    randoms = {results[f"object_Random{s}"][0][0, 0] for s in ("", "_plain", "_unicode")}
+    assert len(randoms) == 3  # the objects' names differ, and so do their random numbers
 
 
 @pytest.mark.parametrize("view_from", ["ABOVE_SURFACE", "ACTIVE_CAMERA"])
@@ -482,9 +484,9 @@ def test_light_path_every_ray_kind():
                                                  "transparent_bounce", "portal_bounce")}
     state = ShadingState(n, path_flag=np.array(kinds, np.uint32), ray_length=rng.uniform(0.1, 50.0, n), **counts)
     out = _evaluate("ShaderNodeLightPath", {}, {}, state)
-    bits = {"Is Camera Ray": 1, "Is Shadow Ray": (1 << 9) | (1 << 10), "Is Diffuse Ray": 1 << 3, "Is Glossy Ray": 1 << 4,
-            "Is Singular Ray": 1 << 5, "Is Reflection Ray": 1 << 1, "Is Transmission Ray": 1 << 2,
-            "Is Volume Scatter Ray": 1 << 7}
+    bits = {"Is Camera Ray": 1, "Is Shadow Ray": (1 << 9) | (1 << 10), "Is Diffuse Ray": 1 << 3,
+            "Is Glossy Ray": 1 << 4, "Is Singular Ray": 1 << 5, "Is Reflection Ray": 1 << 1,
+            "Is Transmission Ray": 1 << 2, "Is Volume Scatter Ray": 1 << 7}
     for name, mask in bits.items():
         np.testing.assert_array_equal(out[name], [1.0 if k & mask else 0.0 for k in kinds], err_msg=name)
     extra = [1.0 if k & ((1 << 9) | (1 << 10) | (1 << 20)) else 0.0 for k in kinds]
@@ -530,7 +532,8 @@ def test_backfacing_hits():
     cos = np.sum(I * N, axis=1)
     expected = [_fresnel(c, 1.0 / 1.45 if b else 1.45) for c, b in zip(cos, back)]
     np.testing.assert_allclose(fresnel, expected, atol=1e-9)
-    layer = _evaluate("ShaderNodeLayerWeight", {}, {"Blend": 0.3, "Normal": 0.0}, state, outputs=("Fresnel",))["Fresnel"]
+    layer = _evaluate("ShaderNodeLayerWeight", {}, {"Blend": 0.3, "Normal": 0.0}, state,
+                      outputs=("Fresnel",))["Fresnel"]
     expected = [_fresnel(c, 0.7 if b else 1.0 / 0.7) for c, b in zip(cos, back)]
     np.testing.assert_allclose(layer, expected, atol=1e-9)
     color = np.array([0.8, 0.3, 0.6])

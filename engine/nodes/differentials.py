@@ -89,7 +89,8 @@ def position_differentials(state):
 # What an offset evaluation needs beyond the fields a node reads.
 _MOVE = ("dP", "dPdu", "dPdv", "Ng")
 _OFFSET_READS = {"P": ("P",) + _MOVE, "barycentric": ("barycentric",) + _MOVE,
-                 "uv": ("uv", "uv_du", "uv_dv") + _MOVE, "generated": ("generated", "generated_du", "generated_dv") + _MOVE,
+                 "uv": ("uv", "uv_du", "uv_dv") + _MOVE,
+                 "generated": ("generated", "generated_du", "generated_dv") + _MOVE,
                  "object": ("P", "object_from_world") + _MOVE, "camera": ("P", "camera_from_world") + _MOVE,
                  "window": ("P", "ndc_from_world") + _MOVE, "texcoord_normal": ("N", "N_du", "N_dv") + _MOVE}
 

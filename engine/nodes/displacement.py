@@ -32,7 +32,8 @@ def displacement(node, inputs, state):
     amount = column((scalar(inputs["Height"]) - scalar(inputs["Midlevel"])) * scalar(inputs["Scale"]))
     if node.prop("space", "OBJECT") == "OBJECT":
         m = state.unshifted.world_from_object
-        return {"Displacement": transform_direction(m, safe_normalize(transform_direction_transposed(m, normal)) * amount)}
+        object_normal = safe_normalize(transform_direction_transposed(m, normal))
+        return {"Displacement": transform_direction(m, object_normal * amount)}
     return {"Displacement": normal * amount}
 
 

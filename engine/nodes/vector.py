@@ -28,7 +28,8 @@ def separate_xyz(node, inputs, state):
 # Per output, every field it may read: Generated and UV come from the instancer with "From
 # Instancer", Object from P with an Object set. Normal reads texcoord_normal, N itself except in
 # a Bump node's offset evaluations (differentials.py).
-_TEXCOORD_READS = {"Generated": ("generated", "instancer_generated"), "Normal": ("texcoord_normal", "world_from_object"),
+_TEXCOORD_READS = {"Generated": ("generated", "instancer_generated"),
+                   "Normal": ("texcoord_normal", "world_from_object"),
                    "UV": ("uv", "instancer_uv"), "Object": ("object", "P"), "Camera": ("camera",),
                    "Window": ("window",), "Reflection": ("I", "N")}
 
