@@ -218,7 +218,8 @@ def _custom_properties(ob):
 
 GEOMETRY_ATTRIBUTES = ("UVMap", "Second", "col_byte", "col_float", "f_point", "f_face", "f_corner", "f_edge",
                        "v_point", "v2_corner", "i_face", "b_point", "i8_point", "q_face", "position", "color",
-                       "missing", "uv", "generated", "pointiness", "random_per_island", "vertex_color")
+                       "missing", "uv", "generated", "pointiness", "random_per_island", "vertex_color", "N", "tangent",
+                       "tangent_sign", "Second.tangent", "Second.tangent_sign", "undisplaced_tangent", "P")
 OBJECT_ATTRIBUTES = ("prop_float", "prop_array", "prop_int", "prop_bool", "prop_int_array", "data_prop", "location",
                      "color", "pass_index", "missing")
 

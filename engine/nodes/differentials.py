@@ -134,8 +134,9 @@ class OffsetState:
 
     def _make(self, name):
         b = self.base
-        if name == "P":
-            return b.P + position_differentials(b)[self.axis] * self.width
+        if name == "P":  # dPdx(sd) = dPdu du.dx + dPdv dv.dx, times the width
+            du, dv = self._steps()
+            return b.P + b.dPdu * column(du) + b.dPdv * column(dv)
         if name == "barycentric":
             du, dv = self._steps()
             return b.barycentric + np.stack([du, dv], axis=-1)
