@@ -19,6 +19,7 @@ import numpy as np
 
 from ..nodes.base import convert
 from ..nodes.graph import Graph, Input, Link, Node
+from .export_attributes import view_layer_attribute
 from .export_image import image_texels
 
 _GROUP_KINDS = {"ShaderNodeGroup", "NodeGroup"}
@@ -218,6 +219,8 @@ class _Export:
             inner = self.source(socket, path[:-1], depth)
             return Input(into.name, into.type, inner.value, inner.link) if inner.link else \
                 Input(into.name, into.type, _convert_const(inner.value, inner.type, into.type))
+        if node.bl_idname == "ShaderNodeAttribute" and node.attribute_type == "VIEW_LAYER":
+            return Input(into.name, into.type, _view_layer_value(node, out, into.type))
         i = self.add(node, path, depth)
         return Input(into.name, into.type, into.value, Link(i, out.identifier, socket_type(out)))
 
@@ -233,6 +236,20 @@ class _Export:
         self.nodes.append(Node(node.bl_idname, label, props, inputs, outputs))
         self.index[key] = len(self.nodes) - 1
         return self.index[key]
+
+
+def _view_layer_value(node, out, into_type: str):
+    """A View Layer attribute as the constant Cycles folds into the graph (blender/shader.cpp
+    resolve_view_layer_attributes): Alpha its w, Fac the average of x, y, z, Color and Vector
+    (x, y, z); converted to the socket it feeds as any link is (Cycles' conversion nodes)."""
+    x, y, z, w = view_layer_attribute(bpy.context.scene, bpy.context.view_layer, node.attribute_name)
+    if out.identifier == "Alpha":
+        value = w
+    elif socket_type(out) == "value":
+        value = (x + y + z) / 3.0
+    else:
+        value = (x, y, z)
+    return _convert_const(value, socket_type(out), into_type)
 
 
 def _group_output(tree):

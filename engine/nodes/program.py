@@ -8,6 +8,11 @@ node, each node's NumPy implementation over all the points at once (engine/nodes
 the value conventions). A node kind the registry does not know is reported once in
 `warnings`, with its fallback: its outputs are zero (value, vector, colour) or nothing
 (shader).
+
+A Bump node needs its Height at the point and at the point moved along the ray differential
+(engine/nodes/bump.py): the nodes Height depends on are compiled twice more, as Cycles' compiler
+copies them (scene/shader_graph.cpp refine_bump_nodes), the copies running on the moved point
+(differentials.OffsetState) and feeding the Bump node's SampleX and SampleY inputs.
 """
 from __future__ import annotations
 
@@ -15,7 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import bump as _bump
 from .base import convert
+from .differentials import AXES, OffsetState, offset_reads
 from .graph import Graph, Input
 from .registry import REGISTRY
 
@@ -27,20 +34,24 @@ class _Const:
 
 @dataclass(frozen=True)
 class _Slot:
-    node: int
+    node: object  # a node's index, or (index, bump node, axis) for a Bump node's offset copy
     socket: str
 
 
 @dataclass(frozen=True)
 class Op:
     """Node `index` of the graph: its kind and node, and per input (identifier, reference,
-    source type, socket type)."""
+    source type, socket type). `key` names its outputs (the index, or (index, bump node, axis)
+    for a copy evaluating a Bump node's Height at the moved point), `shift` is None or (axis,
+    filter width) of such a copy."""
 
     index: int
     node: object
     type: object
     inputs: tuple
     used: tuple = ()  # output identifiers some input or graph output reads
+    key: object = None
+    shift: tuple | None = None
 
 
 def _zero(kind: str):
@@ -64,14 +75,19 @@ class Program:
         """{output name: value} at the points of `state` (engine/nodes/state.py); constant
         outputs stay constants (0-d or (3,)), per-point ones are (N,) or (N,3)."""
         env: dict = {}
+        moved: dict = {}  # (axis, width) -> the state seen from the moved point
         for op in self.ops:
             args = {name: _value(ref, env, src, dst) for name, ref, src, dst in op.inputs}
-            out = op.type.run(op.node, args, state, op.used) if op.type is not None else {}
+            at = state
+            if op.shift is not None:
+                at = moved.setdefault(op.shift, OffsetState(state, *op.shift))
+            out = op.type.run(op.node, args, at, op.used) if op.type is not None else {}
+            key = op.index if op.key is None else op.key
             for name, kind in op.node.outputs:
-                env[(op.index, name)] = out[name] if name in out else _zero(kind)
+                env[(key, name)] = out[name] if name in out else _zero(kind)
             for name in op.used:  # lazily computed outputs that are read
-                if callable(env[(op.index, name)]):
-                    env[(op.index, name)] = env[(op.index, name)]()
+                if callable(env[(key, name)]):
+                    env[(key, name)] = env[(key, name)]()
         return {name: _value(ref, env, src, dst) for name, (ref, src, dst) in self.results.items()}
 
 
@@ -117,6 +133,8 @@ def compile(graph: Graph, outputs: dict) -> Program:
                 value = out[name] if name in out else _zero(socket_type)
                 consts[(i, name)] = value() if callable(value) and name in used[i] else value
             continue
+        if node.kind == _bump.KIND:
+            inputs += _bump_samples(graph, i, order, consts, ops, reads)
         reads.update(fields)
         ops.append(Op(i, node, kind, tuple(inputs), tuple(sorted(used[i]))))
     results = {}
@@ -128,6 +146,63 @@ def compile(graph: Graph, outputs: dict) -> Program:
             ref, src = ref_of(socket)
             results[name] = (ref, src, wanted)
     return Program(ops, results, reads, warnings)
+
+
+def _bump_samples(graph: Graph, b: int, order, consts: dict, ops: list, reads: set) -> list:
+    """For Bump node `b`: append to `ops` the two copies of what its Height depends on, run at the
+    point moved along each axis of the differential, and return the node's extra inputs
+    (SampleX, SampleY) reading them; none where Height is constant."""
+    node = graph.nodes[b]
+    height = node.input("Height")
+    if height is None or height.link is None or (height.link.node, height.link.socket) in consts:
+        return []
+    deps = _height_nodes(graph, height)
+    width = node.input("Filter Width")
+    ref = None if width is None else (consts.get((width.link.node, width.link.socket)) if width.link else width.value)
+    shift_width = _bump.filter_width(node, ref)
+    # The Height's nodes that were not folded to constants, in order (a folded one is the same
+    # constant at the moved point).
+    sub = [j for j in order if j in deps and not all((j, name) in consts for name, _ in graph.nodes[j].outputs)]
+    used = _used(graph, sub, [height])
+    extra = []
+    for axis, sample in zip(AXES, _bump.SAMPLES):
+        for j in sub:
+            inner = graph.nodes[j]
+            kind = REGISTRY.get(inner.kind)
+            inputs = []
+            for socket in inner.inputs:
+                if socket.link is None:
+                    inputs.append((socket.name, _Const(socket.value), socket.type, socket.type))
+                    continue
+                key = (socket.link.node, socket.link.socket)
+                if key in consts:
+                    ref = _Const(consts[key])
+                elif socket.link.node in deps:
+                    ref = _Slot((socket.link.node, b, axis), socket.link.socket)
+                else:  # a Bump inside the Height: its normal as at the point
+                    ref = _Slot(*key)
+                inputs.append((socket.name, ref, socket.link.type, socket.type))
+            fields = kind.fields(used[j], inner) if kind is not None else set()
+            reads.update(offset_reads(fields))
+            ops.append(Op(j, inner, kind, tuple(inputs), tuple(sorted(used[j])), key=(j, b, axis),
+                          shift=(axis, shift_width)))
+        source = (height.link.node, b, axis) if height.link.node in deps else height.link.node
+        extra.append((sample, _Slot(source, height.link.socket), height.link.type, "value"))
+    return extra
+
+
+def _height_nodes(graph: Graph, height: Input) -> set:
+    """The nodes a Bump node's Height depends on, up to another Bump node: a Bump inside the
+    Height gives its normal at the point in the offset evaluations too (Cycles' bake shows the
+    outer Bump's slope taken from the rest of the Height alone)."""
+    found, todo = set(), [height.link.node]
+    while todo:
+        j = todo.pop()
+        if j in found or graph.nodes[j].kind == _bump.KIND:
+            continue
+        found.add(j)
+        todo.extend(s.link.node for s in graph.nodes[j].inputs if s.link is not None)
+    return found
 
 
 def _used(graph: Graph, order, sockets) -> dict:

@@ -26,8 +26,10 @@ def separate_xyz(node, inputs, state):
 
 
 # Per output, every field it may read: Generated and UV come from the instancer with "From
-# Instancer", Object from P with an Object set.
-_TEXCOORD_READS = {"Generated": ("generated", "instancer_generated"), "Normal": ("N", "world_from_object"),
+# Instancer", Object from P with an Object set. Normal reads texcoord_normal, N itself except in
+# a Bump node's offset evaluations (differentials.py).
+_TEXCOORD_READS = {"Generated": ("generated", "instancer_generated"),
+                   "Normal": ("texcoord_normal", "world_from_object"),
                    "UV": ("uv", "instancer_uv"), "Object": ("object", "P"), "Camera": ("camera",),
                    "Window": ("window",), "Reflection": ("I", "N")}
 
@@ -37,7 +39,7 @@ def texture_coordinate(node, inputs, state):
     instancer = node.prop("from_instancer", False)
     world_from_other = node.prop("object")
     return {"Generated": lambda: state.instancer_generated if instancer else state.generated,
-            "Normal": lambda: _object_normal(state.world_from_object, state.N),
+            "Normal": lambda: _object_normal(state.world_from_object, state.texcoord_normal),
             "UV": lambda: state.instancer_uv if instancer else state.uv,
             "Object": lambda: state.object if world_from_other is None else _in_frame(world_from_other, state.P),
             "Camera": lambda: state.camera, "Window": lambda: state.window,
