@@ -39,7 +39,17 @@ _PROBE = dict(P=np.zeros((1, 3)), N=np.array([[0.0, 0.0, 1.0]]), Ng=np.array([[0
               generated=np.full((1, 3), 0.5), object=np.zeros((1, 3)), camera=np.array([[0.0, 0.0, 1.0]]),
               window=np.full((1, 3), 0.5), ray_length=np.ones(1), instancer_generated=np.zeros((1, 3)),
               instancer_uv=np.zeros((1, 3)), world_from_object=np.eye(4)[None], object_from_world=np.eye(4)[None],
-              world_from_camera=np.eye(4), camera_from_world=np.eye(4))
+              world_from_camera=np.eye(4), camera_from_world=np.eye(4),
+              barycentric=np.full((1, 2), 1.0 / 3.0), triangle=np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]]),
+              dPdu=np.array([[1.0, 0.0, 0.0]]), dPdv=np.array([[0.0, 1.0, 0.0]]), smooth=np.ones(1, bool),
+              vertex_normal=np.array([[0.0, 0.0, 1.0]]), N_du=np.zeros((1, 3)), N_dv=np.zeros((1, 3)),
+              uv_du=np.array([[1.0, 0.0, 0.0]]), uv_dv=np.array([[0.0, 1.0, 0.0]]),
+              generated_du=np.array([[1.0, 0.0, 0.0]]), generated_dv=np.array([[0.0, 1.0, 0.0]]),
+              dP=np.full(1, 1e-3), ndc_from_world=np.eye(4), object_color=np.ones((1, 3)), object_alpha=np.ones(1),
+              object_index=np.zeros(1), object_random=np.full(1, 0.5), material_index=np.zeros(1),
+              path_flag=np.ones(1, np.uint32), bounce=np.zeros(1, np.int64), diffuse_bounce=np.zeros(1, np.int64),
+              glossy_bounce=np.zeros(1, np.int64), transmission_bounce=np.zeros(1, np.int64),
+              transparent_bounce=np.zeros(1, np.int64), portal_bounce=np.zeros(1, np.int64))
 
 
 PROBES = 16  # points a varying emission's mean is estimated from
