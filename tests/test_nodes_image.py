@@ -279,26 +279,6 @@ def _smooth_plane(k: int, case: Smooth):
     return ob
 
 
-def _shading_normals(ob, size: int) -> np.ndarray:
-    """Cycles' smooth normal at the bake's points: the vertex normals in world space (the
-    object's transform applied to the mesh), mixed by the point's barycentric weights in its
-    triangle and normalised (geom/triangle.h triangle_smooth_normal)."""
-    mesh = ob.data
-    vertex = np.zeros((4, 3))
-    for loop, normal in zip(mesh.loops, mesh.corner_normals):
-        vertex[loop.vertex_index] = normal.vector
-    m = np.array(ob.matrix_world, np.float64)[:3, :3]
-    world = vertex @ np.linalg.inv(m)  # n M^-1 = (M^-T n)^T
-    world /= np.linalg.norm(world, axis=1, keepdims=True)
-    i = np.arange(size) + 0.5
-    u, v = (a.ravel() for a in np.meshgrid((i + node_bake.BAKE_OFFSET[0]) / size,
-                                           (i + node_bake.BAKE_OFFSET[1]) / size))
-    lower = u >= v  # triangle 0 1 2: weights (1 - u, u - v, v); triangle 0 2 3: (1 - v, u, v - u)
-    weights = np.where(lower[:, None], np.stack([1 - u, u - v, v, 0 * u], 1), np.stack([1 - v, 0 * u, u, v - u], 1))
-    n = weights @ world
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
-
-
 def bake_smooth(cases: dict, size: int = node_bake.SIZE) -> dict:
     """node_bake.bake for Smooth cases: {name: (cycles, ember)}."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -329,13 +309,6 @@ def bake_smooth(cases: dict, size: int = node_bake.SIZE) -> dict:
     for name, (ob, out, target) in made.items():
         cycles = np.array(target.pixels[:], np.float64).reshape(size * size, 4)[:, :3]
         state = node_bake._state(ob, size, camera, world_from_camera, "ABOVE_SURFACE")
-        # The baker's ray arrives along the smooth normal: where that faces away from the
-        # triangle, Cycles takes the hit as backfacing and turns both normals around.
-        n, ng = _shading_normals(ob, size), (-1.0 if cases[name].flip else 1.0) * state.Ng
-        back = np.sum(n * ng, axis=1) < 0.0
-        state._fields["N"] = np.where(back[:, None], -n, n)
-        state._fields["Ng"] = np.where(back[:, None], -ng, ng)
-        state._fields["backfacing"] = back
         results[name] = (cycles, node_bake.evaluate(out, state))
     return results
 
