@@ -41,6 +41,7 @@ from ..scene import (EXT_CLIP, EXT_EXTEND, EXT_MIRROR, EXT_REPEAT, FRESNEL_DIELE
                      FRESNEL_NONE, INTERP_CLOSEST, INTERP_LINEAR, LOBE_DIELECTRIC, LOBE_DIFFUSE,
                      LOBE_MICROFACET, LOBE_PHONG, LOBE_TRANSPARENT, MAT_DIFFUSE, MAT_EMISSION_ONLY,
                      MAT_NODES, MAT_PHONG, TEX_ALPHA, TEX_COLOR, Materials)
+from ..nodes.hits import provides
 from ..nodes.material import compile_material, with_phong
 from ..textures import LUMINANCE
 from .export_nodes import export_graph
@@ -564,7 +565,8 @@ def material_row(mat, textures: _Textures, warn, phong: bool = False) -> dict:
 def _node_row(mat, out, phong: bool, warn) -> dict | None:
     """The material through the node evaluator (engine/nodes/): its lobes, and its graph where
     they vary over the surface; None where the evaluator would approximate more than the
-    conversion above (a node it cannot build). A varying emission's table value is its mean
+    conversion above (a node it cannot build, or one that reads what the renderer does not give
+    a program yet: engine/nodes/hits.py provides). A varying emission's table value is its mean
     over probe points (engine/nodes/material.py): what says the material emits at all."""
     notes = []
     graph = export_graph({"surface": out.inputs["Surface"]}, notes.append)
@@ -576,6 +578,8 @@ def _node_row(mat, out, phong: bool, warn) -> dict | None:
         notes.append(f"node graph not evaluated ({exc})")
         compiled = None
     if compiled is None or any("not supported" in n for n in compiled.notes):
+        return None
+    if not all(provides(field) for field in compiled.program.reads):  # the renderer cannot run it yet
         return None
     notes += list(compiled.notes)
     if follow_link(out.inputs["Displacement"]) is not None:

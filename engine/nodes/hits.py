@@ -113,3 +113,9 @@ class SurfaceHits:
 
     def instancer_uv(self):
         return np.zeros((len(self.prim), 3))
+
+
+def provides(field: str) -> bool:
+    """Whether SurfaceHits gives a state field (or, for "attribute:<name>", named attributes):
+    a program reading anything else cannot run at surface hits yet."""
+    return hasattr(SurfaceHits, "attribute" if field.startswith("attribute:") else field)
