@@ -389,9 +389,15 @@ ENV_PROJECTIONS = ("EQUIRECTANGULAR", "MIRROR_BALL")  # Cycles' Environment Text
 class World:
     """Background radiance L(d) arriving along escaped rays of world direction d.
 
-    color (3,): without an image the constant radiance W/(m^2 sr); with one the factor the
-    image is multiplied by (Background colour x strength).
+    color (3,): without an image or a graph the constant radiance W/(m^2 sr); with an image
+    the factor it is multiplied by (Background colour x strength); with a graph the factor
+    its radiance is multiplied by (1).
     image (H,W,3) float32 linear RGB, rows top-down (row 0 = the top of the picture), or None.
+    graph: (Graph,), the world's Surface node graph (engine/nodes/graph.py) where it varies
+    and is not an image the fast path reads (engine/lights/world.py evaluates it), else ().
+    map_resolution: the width of a graph world's importance table (Cycles' Manual sampling;
+    height = width / 2), 0 automatic (world.map_size), negative: no importance sampling
+    (Cycles' sampling method None: only BSDF sampling finds the world).
     projection: one of ENV_PROJECTIONS; Cycles' mapping of directions to the image
     (engine/lights/environment.py).
     env_from_world (3,3): the image is looked up at direction env_from_world @ d (normalised),
@@ -407,6 +413,8 @@ class World:
     projection: str = "EQUIRECTANGULAR"
     env_from_world: np.ndarray = field(default_factory=lambda: np.eye(3))
     ray_visibility: int = RAY_ALL
+    graph: tuple = ()
+    map_resolution: int = 0
 
 
 @dataclass(frozen=True)
