@@ -334,6 +334,12 @@ class Lights:
     ray_visibility (L,) uint8 RAY_* bits: the ray kinds that see the light (camera: as
     `visible`) and the BSDF lobes it lights (diffuse, glossy, transmission; Cycles' light
     object visibility).
+    graphs: per light, its shader's node graph (engine/nodes/graph.py) where its emission
+    varies over the light's samples (Light Falloff, IES, a texture of the direction), else
+    None; empty: none at all. Le is then the light's radiance for a shader of emission 1,
+    which engine/lights/light_shader.py multiplies by the program's value per sample and hit.
+    matrix (L,3,3): the light object's world matrix's linear part (columns its x, y, z axes,
+    scale included); with `position`, the object transform a light's shader reads.
     """
 
     kind: np.ndarray
@@ -349,11 +355,15 @@ class Lights:
     visible: np.ndarray
     names: tuple = ()
     ray_visibility: np.ndarray = None
+    graphs: tuple = ()
+    matrix: np.ndarray = None
 
     def __post_init__(self):
         if self.ray_visibility is None:
             vis = np.where(np.asarray(self.visible, bool), RAY_ALL, RAY_ALL & ~RAY_CAMERA).astype(np.uint8)
             object.__setattr__(self, "ray_visibility", vis.reshape(len(self.kind)))
+        if self.matrix is None:
+            object.__setattr__(self, "matrix", np.transpose(np.asarray(self.frame, np.float64), (0, 2, 1)))
 
     @staticmethod
     def make(rows: list[dict]) -> "Lights":
@@ -376,6 +386,9 @@ class Lights:
             names=tuple(g("name", "light")),
             ray_visibility=np.array([r.get("ray_visibility", RAY_ALL if r.get("visible", True) else RAY_ALL & ~RAY_CAMERA)
                                      for r in rows], np.uint8).reshape(n),
+            graphs=tuple(r.get("graph") for r in rows) if any(r.get("graph") is not None for r in rows) else (),
+            matrix=np.array([r["matrix"] if "matrix" in r else np.transpose(r.get("frame", eye)) for r in rows],
+                            np.float64).reshape(n, 3, 3),
         )
 
     def __len__(self) -> int:

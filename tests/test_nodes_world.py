@@ -7,11 +7,13 @@ quadrature for every strategy, the path state a world's Light Path reads (throug
 node), what a world builds, and a World's graph through save / load and the worker handover.
 With Blender (marked blender): Ember's renders of a white diffuse sphere under worlds Cycles
 renders differently from a constant (the default Sky Texture, a Mix Shader of two backgrounds,
-an Environment Texture through Mapping, a procedural gradient), against Cycles' renders of the
-same scenes in the same run.
+an Environment Texture through Mapping, a procedural gradient) and lit by lights whose node
+trees fold to constants (Blackbody, Emission strength), against Cycles' renders of the same
+scenes in the same run.
 
 Mutation checks live in the tests themselves: a table pdf off by 3 % must fail the chi-square
-(test_chi2_notices_a_three_percent_pdf_error).
+(test_chi2_notices_a_three_percent_pdf_error), a light strength in the wrong unit must fail the
+render comparison (test_lights_match_cycles's mutation case).
 """
 import numpy as np
 import pytest
@@ -384,7 +386,7 @@ def _no_geometry():
 
 
 # ---- against Cycles (Blender) -------------------------------------------------------------------
-# A white diffuse sphere (and a floor where asked) rendered by Cycles and by Ember's path
+# A white diffuse sphere (and, for the lights, a floor) rendered by Cycles and by Ember's path
 # tracer in the same run, each as several independent renders: the spread of their means is an
 # honest variance of each pixel's mean (Sobol's within-pixel variance overstates it). Pixels are
 # z-tested with the within-pixel variances (a conservative screen for outliers); the image and
@@ -594,3 +596,197 @@ def test_worlds_match_cycles(name):
     ember = _ember_renders(samples, EMBER_RUNS)
     failures = compare(ember, cycles, name)
     assert not failures, failures
+
+
+def lights_scene():
+    """The sphere on a floor, a black world, lit by a soft point light whose Emission colour is a
+    Blackbody (3500 K) and an area light of Emission strength 3 and colour (1, 0.8, 0.6): both
+    shaders fold to constants that multiply the lights' power."""
+    bpy = _bpy()
+    sc, wt = sphere_scene(floor=True)
+    bg = wt.nodes.new("ShaderNodeBackground")
+    bg.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    _link(wt, bg.outputs[0], wt.nodes.new("ShaderNodeOutputWorld").inputs["Surface"])
+
+    def add(kind, name, location, rotation=(0.0, 0.0, 0.0), **props):
+        light = bpy.data.lights.new(name, kind)
+        for k, v in props.items():
+            setattr(light, k, v)
+        ob = bpy.data.objects.new(name, light)
+        ob.location, ob.rotation_euler = location, rotation
+        sc.collection.objects.link(ob)
+        light.use_nodes = True
+        return light
+
+    point = add("POINT", "Point", (2.0, 2.0, 3.0), energy=400.0, shadow_soft_size=0.3)
+    nt = point.node_tree
+    black = nt.nodes.new("ShaderNodeBlackbody")
+    black.inputs["Temperature"].default_value = 3500.0
+    _link(nt, black.outputs["Color"], nt.nodes["Emission"].inputs["Color"])
+    area = add("AREA", "Area", (1.5, -2.0, 2.5), (np.radians(50.0), 0.0, np.radians(35.0)), energy=60.0, size=1.0)
+    emission = area.node_tree.nodes["Emission"]
+    emission.inputs["Strength"].default_value = 3.0
+    emission.inputs["Color"].default_value = (1.0, 0.8, 0.6, 1.0)
+    return sc
+
+
+@pytest.mark.blender
+def test_lights_match_cycles(monkeypatch):
+    """The lights' shaders fold to the constants Cycles multiplies into their strength; the
+    mutations - the node strength dropped, or 4 % off - must fail the same comparison."""
+    sc = lights_scene()
+    from ember.engine.blender import export_light
+    from ember.engine.blender.export import export_scene
+    scene, warnings = export_scene(_bpy().context.evaluated_depsgraph_get())
+    assert not scene.lights.graphs and not warnings, warnings
+    cycles = _cycles_renders(sc, 512, CYCLES_RUNS)
+    ember = _ember_renders(128, EMBER_RUNS)
+    failures = compare(ember, cycles, "lights")
+    assert not failures, failures
+    shader = export_light.light_shader
+    for label, wrong in (("strength dropped", lambda f: f / np.max(f)), ("4 % off", lambda f: 1.04 * f)):
+        monkeypatch.setattr(export_light, "light_shader", lambda light, warn, wrong=wrong: (
+            wrong(shader(light, warn)[0]), None))
+        assert compare(_ember_renders(128, EMBER_RUNS), cycles, label), f"the mutation '{label}' went unnoticed"
+    monkeypatch.setattr(export_light, "light_shader", shader)
+
+
+IES_PROFILE = """IESNA:LM-63-2002
+[TEST] a downlight brighter toward one side (type C, two quadrants given)
+TILT=NONE
+1 1000 1.0 7 3 1 2 0.1 0.1 0.1
+1.0 1.0 100
+0 30 60 90 120 150 180
+0 90 180
+1000 900 600 300 100 20 0
+1000 950 800 450 150 30 0
+1000 700 300 100 40 10 0
+"""
+
+
+def varying_lights_scene():
+    """The sphere on its floor under a black world, lit by a soft point light turned by its
+    object whose Emission strength is an IES Texture's Fac, and a sun-less area light whose
+    strength goes through Light Falloff (Linear): shaders that vary over the light, evaluated
+    per light sample and hit."""
+    bpy = _bpy()
+    sc = lights_scene()
+    for ob in list(sc.collection.objects):
+        if ob.type == "LIGHT":
+            bpy.data.objects.remove(ob)
+    light = bpy.data.lights.new("IES", "POINT")
+    light.energy, light.shadow_soft_size, light.use_nodes = 8.0, 0.2, True
+    ob = bpy.data.objects.new("IES", light)
+    ob.location, ob.rotation_euler = (0.8, 0.5, 3.0), (0.35, 0.0, 0.6)
+    sc.collection.objects.link(ob)
+    nt = light.node_tree
+    tex = nt.nodes.new("ShaderNodeTexIES")
+    tex.mode = "INTERNAL"
+    tex.ies = bpy.data.texts.new("profile.ies")
+    tex.ies.write(IES_PROFILE)
+    _link(nt, tex.outputs["Fac"], nt.nodes["Emission"].inputs["Strength"])
+    area = bpy.data.lights.new("Falloff", "AREA")
+    area.energy, area.size, area.use_nodes = 40.0, 1.0, True
+    ob = bpy.data.objects.new("Falloff", area)
+    ob.location, ob.rotation_euler = (1.5, -2.0, 2.5), (np.radians(50.0), 0.0, np.radians(35.0))
+    sc.collection.objects.link(ob)
+    falloff = area.node_tree.nodes.new("ShaderNodeLightFalloff")
+    falloff.inputs["Strength"].default_value = 0.5
+    _link(area.node_tree, falloff.outputs["Linear"], area.node_tree.nodes["Emission"].inputs["Strength"])
+    return sc
+
+
+@pytest.mark.blender
+def test_varying_light_shaders_match_cycles():
+    sc = varying_lights_scene()
+    from ember.engine.blender.export import export_scene
+    scene, warnings = export_scene(_bpy().context.evaluated_depsgraph_get())
+    assert sum(g is not None for g in scene.lights.graphs) == 2
+    assert all("varies over the light" in t for t in warnings), warnings
+    cycles = _cycles_renders(sc, 512, CYCLES_RUNS)
+    ember = _ember_renders(128, EMBER_RUNS)
+    failures = compare(ember, cycles, "varying lights")
+    assert not failures, failures
+
+
+@pytest.mark.blender
+def test_light_shaders_fold_as_cycles_multiplies_them():
+    """Le of a light = Cycles' strength x eval_fac x the shader's constant emission: a
+    Blackbody colour and an Emission strength fold exactly; use_nodes off is an emission of 1;
+    a tree without a Light Output emits nothing (Cycles renders it black); an IES Texture
+    varies and keeps its graph, its file read from the Text."""
+    bpy = _bpy()
+    sc = lights_scene()
+    from ember.engine.blender import export_light
+    from ember.engine.nodes.color import blackbody_rec709
+    point = bpy.data.objects["Point"]
+    base = np.array(point.data.color) * point.data.energy / (np.pi * 4.0 * np.pi * 0.3**2)  # normalized sphere
+    warnings = []
+    row = export_light.export_light(point, point.matrix_world, warnings.append)
+    np.testing.assert_allclose(row["Le"], base * np.maximum(blackbody_rec709(3500.0), 0.0), rtol=1e-6)
+    assert "graph" not in row and not warnings
+    area = bpy.data.objects["Area"]
+    factor, graph = export_light.light_shader(area.data, warnings.append)
+    np.testing.assert_allclose(factor, [3.0, 2.4, 1.8], rtol=1e-6)
+    point.data.use_nodes = False
+    np.testing.assert_array_equal(export_light.light_shader(point.data, warnings.append)[0], np.ones(3))
+    point.data.use_nodes = True
+    nt = point.data.node_tree
+    nt.nodes.remove(nt.nodes["Light Output"])
+    assert export_light.export_light(point, point.matrix_world, warnings.append) is None
+    assert warnings and "Light Output" in warnings[-1]
+    sc = varying_lights_scene()
+    ies_light = bpy.data.objects["IES"]
+    factor, graph = export_light.light_shader(ies_light.data, warnings.append)
+    ies_node = next(n for n in graph.nodes if n.kind == "ShaderNodeTexIES")
+    assert ies_node.prop("ies") == IES_PROFILE and np.all(factor == 1.0)
+
+
+# ---- IES profiles ------------------------------------------------------------------------------
+
+def test_ies_profile_is_processed_as_cycles_does():
+    """Type C from two quadrants mirrored to the full turn (360 degrees = 0), the candela
+    scaled by multiplier x ballast factors x 4 pi / 177.83; the table interpolates its own
+    values at its angles; TILT=INCLUDE and commas are read; type A or nothing: 100 (Cycles'
+    missing profile)."""
+    from ember.engine.nodes import ies
+    h, v, table = ies.profile(IES_PROFILE)
+    np.testing.assert_allclose(np.degrees(h), [0, 90, 180, 270, 360], atol=1e-5)
+    np.testing.assert_allclose(np.degrees(v), [0, 30, 60, 90, 120, 150, 180], atol=1e-5)
+    np.testing.assert_allclose(table[3], table[1])  # 270 mirrors 90
+    np.testing.assert_allclose(table[4], table[0])
+    np.testing.assert_allclose(table[1, 2], 800 * ies.CANDELA_TO_WATT, rtol=1e-6)
+    hh, vv = np.meshgrid(h[:-1], v[:-1], indexing="ij")
+    np.testing.assert_allclose(ies.interpolate((h, v, table), hh.ravel(), vv.ravel()), table[:-1, :-1].ravel(),
+                               rtol=1e-6)
+    tilted = IES_PROFILE.replace("TILT=NONE\n", "TILT=INCLUDE\n1\n2\n0, 90\n1, 1\n").replace("0 90 180\n", "0,90,180\n")
+    np.testing.assert_array_equal(ies.profile(tilted)[2], table)
+    type_a = IES_PROFILE.replace("1 1000 1.0 7 3 1 2", "1 1000 1.0 7 3 3 2")
+    assert ies.profile(type_a) is None and ies.profile("") is None
+
+
+def test_ies_texture_reads_the_light_frame_normal():
+    """Unlinked, the Vector is N in object space: straight down the object's -z reads v = 0;
+    turning the object turns the profile."""
+    from ember.engine.nodes import ies
+    node = _node("ShaderNodeTexIES", "IES", [Input("Vector", "vector", (0.0, 0.0, 0.0)), Input("Strength", "value", 2.0)],
+                 [("Fac", "value")], ies=IES_PROFILE, mode="INTERNAL")
+    down = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    state = ShadingStateFor(N=down, world_from_object=np.broadcast_to(np.eye(4), (2, 4, 4)))
+    fac = registry.REGISTRY["ShaderNodeTexIES"].run(node, {"Vector": np.zeros(3), "Strength": np.float64(2.0)},
+                                                    state, ("Fac",))["Fac"]
+    h, v, table = ies.profile(IES_PROFILE)
+    np.testing.assert_allclose(fac[0], 2.0 * table[0, 0], rtol=1e-6)
+    # +y in object space: h = atan2(0, 1) + pi (180 degrees), v = 90 degrees.
+    np.testing.assert_allclose(fac[1], 2.0 * table[2, 3], rtol=1e-6)
+    turn = np.eye(4)
+    turn[:3, :3] = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]  # 90 degrees about z
+    state = ShadingStateFor(N=down, world_from_object=np.broadcast_to(turn, (2, 4, 4)))
+    turned = registry.REGISTRY["ShaderNodeTexIES"].run(node, {"Vector": np.zeros(3), "Strength": np.float64(2.0)},
+                                                       state, ("Fac",))["Fac"]
+    np.testing.assert_allclose(turned[1], 2.0 * table[3, 3], rtol=1e-6)  # world y is object +x: 270 degrees
+
+
+def ShadingStateFor(**fields):
+    n = len(next(iter(fields.values())))
+    return state_mod.ShadingState(n, **fields)

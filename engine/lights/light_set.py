@@ -34,7 +34,7 @@ import numpy as np
 from .. import sampling
 from ..scene import LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, RAY_ALL, RAY_CAMERA, Lights, Materials, Mesh, World
 from ..vec import max3, scale, take
-from . import light_tree, shapes, world as world_light
+from . import light_shader, light_tree, shapes, world as world_light
 
 # From this many finite lights on, a light tree chooses them (below: power alone, as the seed
 # says): below it the tree's cost per shading point is not reliably repaid at equal time
@@ -88,6 +88,8 @@ class LightSet:
         self.lights = lights
         self.n_analytic = len(lights)
         self.scene_radius = scene_radius
+        # Lights whose shader varies: their programs multiply Le per sample and hit.
+        self.shaders = light_shader.LightShaders(lights) if lights.graphs else None
         # Emissive triangles.
         tri_Le = materials.emission[mesh.material] if mesh.n_triangles else np.zeros((0, 3))
         emissive = np.any(tri_Le != 0, axis=-1) & (accel.area > 0) if mesh.n_triangles else np.zeros(0, bool)
@@ -285,7 +287,11 @@ class LightSet:
             rows, r = rows_of((index < self.n_analytic)
                               & (self.lights.kind[np.minimum(index, max(self.n_analytic - 1, 0))] == kind))
             if len(rows):
-                put(rows, shapes.sample_analytic(kind, self.lights, index[r], p[r], u[r]))
+                ss = shapes.sample_analytic(kind, self.lights, index[r], p[r], u[r])
+                if self.shaders is not None:
+                    ss = shapes.ShapeSample(ss.wi, self.shaders.apply(index[r], p[r], ss.wi, ss.Le, ss.target, ss.finite),
+                                            ss.pdf, ss.target, ss.finite)
+                put(rows, ss)
         wi, Le, pdf_dir, target, finite = (out[k] for k in ("wi", "Le", "pdf", "target", "finite"))
         delta = self.delta[index]
         pdf = np.where(delta, pmf, pmf * pdf_dir)
@@ -336,7 +342,7 @@ class LightSet:
         lights = self.lights
         for i in self.hittable.tolist():
             h = shapes.hit_analytic(int(lights.kind[i]), lights, i, o, d, tmax)
-            self._add_weighted(total, i, h, pdf_bsdf, use_mis, camera, kind, o)
+            self._add_weighted(total, i, h, pdf_bsdf, use_mis, camera, kind, o, d)
         return total
 
     def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray,
@@ -349,7 +355,7 @@ class LightSet:
         none counted) where Light Path asks (world_reads_path, world_reads_bounces)."""
         total = np.zeros((len(d), 3))
         for i in self.suns.tolist():
-            self._add_weighted(total, i, shapes.sun_hit(self.lights, i, d), pdf_bsdf, use_mis, camera, kind)
+            self._add_weighted(total, i, shapes.sun_hit(self.lights, i, d), pdf_bsdf, use_mis, camera, kind, None, d)
         seen = ~camera | self.world_visible
         if kind is not None and self.partial_visibility:
             seen = seen & ((kind & self.world_visibility) != 0)
@@ -373,9 +379,9 @@ class LightSet:
             total += np.where(seen[:, None], self.world, 0.0)
         return total
 
-    def _add_weighted(self, total, i, h: shapes.LightHit, pdf_bsdf, use_mis, camera, kind=None, o=None):
+    def _add_weighted(self, total, i, h: shapes.LightHit, pdf_bsdf, use_mis, camera, kind=None, o=None, d=None):
         """total += gain x Le[i] x MIS weight on the rays that hit light i (h; from origins o,
-        (N,3); None for infinite lights)."""
+        (N,3), None for infinite lights; along d (N,3), for a light whose shader varies)."""
         hit = h.hit
         if not self.lights.visible[i]:
             hit = hit & ~camera
@@ -392,5 +398,10 @@ class LightSet:
         pdf_light = pmf * h.pdf
         w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
         a = np.where(hit, h.gain * w, 0.0)
+        if self.shaders is not None and self.shaders.has[i]:
+            r = np.flatnonzero(hit)
+            P = -d[r] if o is None else o[r] + d[r] * h.t[r, None]  # a sun: the direction it shines along
+            total[r] += a[r, None] * self.lights.Le[i] * self.shaders.factor(i, P, d[r], h.t[r])
+            return
         for k in range(3):
             total[:, k] += a * self.lights.Le[i, k]
