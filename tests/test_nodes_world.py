@@ -716,7 +716,7 @@ def test_light_shaders_fold_as_cycles_multiplies_them():
     a tree without a Light Output emits nothing (Cycles renders it black); an IES Texture
     varies and keeps its graph, its file read from the Text."""
     bpy = _bpy()
-    sc = lights_scene()
+    lights_scene()
     from ember.engine.blender import export_light
     from ember.engine.nodes.color import blackbody_rec709
     point = bpy.data.objects["Point"]
@@ -735,7 +735,7 @@ def test_light_shaders_fold_as_cycles_multiplies_them():
     nt.nodes.remove(nt.nodes["Light Output"])
     assert export_light.export_light(point, point.matrix_world, warnings.append) is None
     assert warnings and "Light Output" in warnings[-1]
-    sc = varying_lights_scene()
+    varying_lights_scene()
     ies_light = bpy.data.objects["IES"]
     factor, graph = export_light.light_shader(ies_light.data, warnings.append)
     ies_node = next(n for n in graph.nodes if n.kind == "ShaderNodeTexIES")
@@ -769,8 +769,9 @@ def test_ies_texture_reads_the_light_frame_normal():
     """Unlinked, the Vector is N in object space: straight down the object's -z reads v = 0;
     turning the object turns the profile."""
     from ember.engine.nodes import ies
-    node = _node("ShaderNodeTexIES", "IES", [Input("Vector", "vector", (0.0, 0.0, 0.0)), Input("Strength", "value", 2.0)],
-                 [("Fac", "value")], ies=IES_PROFILE, mode="INTERNAL")
+    node = _node("ShaderNodeTexIES", "IES", [Input("Vector", "vector", (0.0, 0.0, 0.0)),
+                                             Input("Strength", "value", 2.0)], [("Fac", "value")],
+                 ies=IES_PROFILE, mode="INTERNAL")
     down = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
     state = ShadingStateFor(N=down, world_from_object=np.broadcast_to(np.eye(4), (2, 4, 4)))
     fac = registry.REGISTRY["ShaderNodeTexIES"].run(node, {"Vector": np.zeros(3), "Strength": np.float64(2.0)},

@@ -288,9 +288,9 @@ class LightSet:
                               & (self.lights.kind[np.minimum(index, max(self.n_analytic - 1, 0))] == kind))
             if len(rows):
                 ss = shapes.sample_analytic(kind, self.lights, index[r], p[r], u[r])
-                if self.shaders is not None:
-                    ss = shapes.ShapeSample(ss.wi, self.shaders.apply(index[r], p[r], ss.wi, ss.Le, ss.target, ss.finite),
-                                            ss.pdf, ss.target, ss.finite)
+                if self.shaders is not None:  # shaders that vary: their emission at the points sampled
+                    Le = self.shaders.apply(index[r], p[r], ss.wi, ss.Le, ss.target, ss.finite)
+                    ss = shapes.ShapeSample(ss.wi, Le, ss.pdf, ss.target, ss.finite)
                 put(rows, ss)
         wi, Le, pdf_dir, target, finite = (out[k] for k in ("wi", "Le", "pdf", "target", "finite"))
         delta = self.delta[index]

@@ -79,7 +79,7 @@ BOUNCE_FIELDS = PATH_FIELDS - {"path_flag"}
 _COUNTS = {"diffuse_bounce": 0, "glossy_bounce": 1, "transmission_bounce": 2, "transparent_bounce": 3}  # LABEL_*
 _FLT_MAX = float(np.finfo(np.float32).max)
 
-MAX_WIDTH = 2048  # 2 M evaluations, ~80 MB per process (Cycles goes to 4096 for several suns)
+MAX_WIDTH = 2048  # 2 M evaluations, ~60 MB per process (Cycles goes to 4096 for several suns)
 DEFAULT_WIDTH = 1024  # Cycles' default
 SUN_WIDTH = 512  # Cycles' least with a sun guided apart
 FLOOR = 1e-3  # uncompensated tables: the least a pixel weighs, x the mean
