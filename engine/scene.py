@@ -334,6 +334,12 @@ class Lights:
     ray_visibility (L,) uint8 RAY_* bits: the ray kinds that see the light (camera: as
     `visible`) and the BSDF lobes it lights (diffuse, glossy, transmission; Cycles' light
     object visibility).
+    graphs: per light, its shader's node graph (engine/nodes/graph.py) where its emission
+    varies over the light's samples (Light Falloff, IES, a texture of the direction), else
+    None; empty: none at all. Le is then the light's radiance for a shader of emission 1,
+    which engine/lights/light_shader.py multiplies by the program's value per sample and hit.
+    matrix (L,3,3): the light object's world matrix's linear part (columns its x, y, z axes,
+    scale included); with `position`, the object transform a light's shader reads.
     """
 
     kind: np.ndarray
@@ -349,11 +355,15 @@ class Lights:
     visible: np.ndarray
     names: tuple = ()
     ray_visibility: np.ndarray = None
+    graphs: tuple = ()
+    matrix: np.ndarray = None
 
     def __post_init__(self):
         if self.ray_visibility is None:
             vis = np.where(np.asarray(self.visible, bool), RAY_ALL, RAY_ALL & ~RAY_CAMERA).astype(np.uint8)
             object.__setattr__(self, "ray_visibility", vis.reshape(len(self.kind)))
+        if self.matrix is None:
+            object.__setattr__(self, "matrix", np.transpose(np.asarray(self.frame, np.float64), (0, 2, 1)))
 
     @staticmethod
     def make(rows: list[dict]) -> "Lights":
@@ -376,6 +386,9 @@ class Lights:
             names=tuple(g("name", "light")),
             ray_visibility=np.array([r.get("ray_visibility", RAY_ALL if r.get("visible", True) else RAY_ALL & ~RAY_CAMERA)
                                      for r in rows], np.uint8).reshape(n),
+            graphs=tuple(r.get("graph") for r in rows) if any(r.get("graph") is not None for r in rows) else (),
+            matrix=np.array([r["matrix"] if "matrix" in r else np.transpose(r.get("frame", eye)) for r in rows],
+                            np.float64).reshape(n, 3, 3),
         )
 
     def __len__(self) -> int:
@@ -389,9 +402,15 @@ ENV_PROJECTIONS = ("EQUIRECTANGULAR", "MIRROR_BALL")  # Cycles' Environment Text
 class World:
     """Background radiance L(d) arriving along escaped rays of world direction d.
 
-    color (3,): without an image the constant radiance W/(m^2 sr); with one the factor the
-    image is multiplied by (Background colour x strength).
+    color (3,): without an image or a graph the constant radiance W/(m^2 sr); with an image
+    the factor it is multiplied by (Background colour x strength); with a graph the factor
+    its radiance is multiplied by (1).
     image (H,W,3) float32 linear RGB, rows top-down (row 0 = the top of the picture), or None.
+    graph: (Graph,), the world's Surface node graph (engine/nodes/graph.py) where it varies
+    and is not an image the fast path reads (engine/lights/world.py evaluates it), else ().
+    map_resolution: the width of a graph world's importance table (Cycles' Manual sampling;
+    height = width / 2), 0 automatic (world.map_size), negative: no importance sampling
+    (Cycles' sampling method None: only BSDF sampling finds the world).
     projection: one of ENV_PROJECTIONS; Cycles' mapping of directions to the image
     (engine/lights/environment.py).
     env_from_world (3,3): the image is looked up at direction env_from_world @ d (normalised),
@@ -407,6 +426,8 @@ class World:
     projection: str = "EQUIRECTANGULAR"
     env_from_world: np.ndarray = field(default_factory=lambda: np.eye(3))
     ray_visibility: int = RAY_ALL
+    graph: tuple = ()
+    map_resolution: int = 0
 
 
 @dataclass(frozen=True)

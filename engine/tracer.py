@@ -45,7 +45,9 @@ class Tracer:
             BUILDS["embree"] += 1
         same_settings = previous is not None and (previous.scene.settings.strategy, previous.scene.settings.film_transparent) \
             == (s.strategy, s.film_transparent)
-        if kept("mesh", "materials", "lights", "world") and same_settings:
+        # A world reading Camera or Window coordinates is built again when the camera moves.
+        world_camera = ("camera",) if previous is not None and getattr(previous.lights, "world_reads_camera", False) else ()
+        if kept("mesh", "materials", "lights", "world", *world_camera) and same_settings:
             self.lights = previous.lights
         else:
             # A transparent film hides the world from camera rays only; it still lights the scene.
@@ -53,7 +55,8 @@ class Tracer:
             programs = MaterialPrograms.of(scene.materials)
             emitters = SurfaceEmission(scene, programs) if programs.varying_emission.any() else None
             self.lights = LightSet(scene.lights, scene.mesh, scene.materials, world, self.accel,
-                                   self.accel.scene_radius, s.strategy, surface_emission=emitters)
+                                   self.accel.scene_radius, s.strategy, surface_emission=emitters,
+                                   camera=scene.camera)
             BUILDS["lights"] += 1
         self.integrator = create(scene)
         self.integrator.build(TraceContext(scene, self.accel, self.lights, self.integrator.layout))

@@ -1,5 +1,6 @@
-"""World export: Environment Texture pixels, colour spaces, projection, Mapping node
-chain -> env_from_world, strength, visibility and the warnings for what is not supported."""
+"""World export: the fast path (an Environment Texture read with Closest interpolation: its
+pixels, colour spaces, projection, Mapping node chain -> env_from_world, strength), what goes
+through the node graph instead, visibility and the warnings."""
 import math
 import os
 import tempfile
@@ -13,14 +14,15 @@ from mathutils import Euler, Matrix  # noqa: E402
 
 from ember.engine.blender.export import export_scene  # noqa: E402
 from ember.engine.blender.export_world import MISSING_IMAGE  # noqa: E402
+from ember.engine.lights.world import world_emitters  # noqa: E402
 from ember.engine.textures import srgb_to_linear  # noqa: E402
 
 pytestmark = pytest.mark.blender
 
 
-def scene_with_environment(make_image, strength=1.0):
+def scene_with_environment(make_image, strength=1.0, interpolation="Closest"):
     """Empty file + a cube + World: Environment Texture (image from make_image(), made after
-    the file is reset) -> Background."""
+    the file is reset; Closest interpolation: the fast path) -> Background."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
     bpy.ops.mesh.primitive_cube_add()
@@ -34,6 +36,7 @@ def scene_with_environment(make_image, strength=1.0):
     bg = nt.nodes["Background"]
     env = nt.nodes.new("ShaderNodeTexEnvironment")
     env.image = make_image()
+    env.interpolation = interpolation
     nt.links.new(env.outputs["Color"], bg.inputs["Color"])
     bg.inputs["Strength"].default_value = strength
     sc.world = world
@@ -87,9 +90,9 @@ def test_byte_images_are_decoded_by_their_colour_space():
     np.testing.assert_allclose(w.world.image, srgb_to_linear(codes[::-1, :, :3] / 255.0), rtol=1e-6, atol=1e-7)
     env.image = byte_image("Non-Color")
     np.testing.assert_allclose(export()[0].world.image, codes[::-1, :, :3] / 255.0, rtol=1e-6)
-    env.image = byte_image("Filmic Log")
+    env.image = byte_image("Filmic Log")  # Cycles converts with OpenColorIO: the graph warns
     w, warnings = export()
-    assert len(warnings) == 1 and "Filmic Log" in warnings[0]
+    assert w.world.image is None and w.world.graph and any("Filmic Log" in t for t in warnings)
 
 
 @pytest.mark.parametrize("vector_type", ["POINT", "VECTOR", "TEXTURE", "NORMAL"])
@@ -117,7 +120,10 @@ def test_mapping_chain_becomes_env_from_world(vector_type):
     np.testing.assert_allclose(w.world.env_from_world, M2 @ M1, atol=1e-6)
 
 
-def test_unsupported_parts_warn_and_fall_back():
+def test_what_the_fast_path_does_not_read_goes_through_the_graph():
+    """A Location in the Mapping, another vector source, filtered lookups, a missing image, a
+    Sky Texture: exported as the node graph (World.graph), no image, no warning where the
+    evaluator computes it as Cycles does."""
     sc, nt, env = scene_with_environment(lambda: float_image(random_pixels()))
     tc = nt.nodes.new("ShaderNodeTexCoord")
     mapping = nt.nodes.new("ShaderNodeMapping")
@@ -125,33 +131,60 @@ def test_unsupported_parts_warn_and_fall_back():
     nt.links.new(tc.outputs["Generated"], mapping.inputs["Vector"])
     nt.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
     w, warnings = export()
-    assert len(warnings) == 1 and "Location" in warnings[0] and "'Sky'" in warnings[0]
-    np.testing.assert_allclose(w.world.env_from_world, np.eye(3))
-    geometry = nt.nodes.new("ShaderNodeNewGeometry")
-    nt.links.new(geometry.outputs["Normal"], env.inputs["Vector"])
+    assert warnings == [] and w.world.image is None and len(w.world.graph) == 1
+    kinds = {n.kind for n in w.world.graph[0].nodes}
+    assert {"ShaderNodeMapping", "ShaderNodeTexEnvironment", "ShaderNodeBackground"} <= kinds
+    np.testing.assert_array_equal(w.world.color, np.ones(3))
+    assert w.world.map_resolution == 0
+    nt.links.new(tc.outputs["Generated"], env.inputs["Vector"])
+    env.interpolation = "Linear"
     w, warnings = export()
-    assert len(warnings) == 1 and "Geometry" in warnings[0] and w.world.image is not None
-    # No image: Cycles' magenta, constant.
+    assert warnings == [] and w.world.image is None and w.world.graph
+    # No image: Cycles' magenta everywhere, a constant table: a constant light, no table.
     env.image = None
     w, warnings = export()
-    assert w.world.image is None and len(warnings) == 1 and "magenta" in warnings[0]
-    np.testing.assert_allclose(w.world.color, MISSING_IMAGE)
-    # A file that cannot be loaded: the same.
+    assert w.world.image is None and any("magenta" in t for t in warnings)
+    constant, background, table = world_emitters(w.world)
+    np.testing.assert_array_equal(constant, MISSING_IMAGE)
+    assert table is None and background is not None
+    # A file that cannot be loaded: magenta.
     missing = bpy.data.images.new("gone", 4, 4)
     missing.source = "FILE"
     missing.filepath = "/nonexistent/ember_sky.exr"
     env.image = missing
     w, warnings = export()
-    assert w.world.image is None and "could not be loaded" in warnings[0]
-    # Sky Texture: no bake through the Python API; the Background's own colour is used.
+    np.testing.assert_array_equal(world_emitters(w.world)[0], MISSING_IMAGE)
+    # Sky Texture: evaluated by the node program.
     sky = nt.nodes.new("ShaderNodeTexSky")
     bg = nt.nodes["Background"]
-    bg.inputs["Color"].default_value = (0.2, 0.3, 0.4, 1.0)
     nt.links.new(sky.outputs["Color"], bg.inputs["Color"])
     w, warnings = export()
-    assert len(warnings) == 1 and "Sky Texture" in warnings[0]
-    np.testing.assert_allclose(w.world.color, [0.2, 0.3, 0.4], rtol=1e-6)
-    assert w.world.image is None
+    assert warnings == [] and w.world.graph and w.world.graph[0].nodes[0].kind == "ShaderNodeTexSky"
+    # Sampling settings: Manual resolution, None.
+    world = sc.world
+    world.cycles.sampling_method = "MANUAL"
+    world.cycles.sample_map_resolution = 256
+    assert export()[0].world.map_resolution == 256
+    world.cycles.sampling_method = "NONE"
+    assert export()[0].world.map_resolution < 0
+
+
+def test_constant_graphs_fold_to_a_colour():
+    """A Background of a Blackbody colour times a Math strength is a constant: World.color,
+    no graph (as the background's colour x strength)."""
+    sc, nt, env = scene_with_environment(lambda: float_image(random_pixels()))
+    bg = nt.nodes["Background"]
+    black = nt.nodes.new("ShaderNodeBlackbody")
+    black.inputs["Temperature"].default_value = 4000.0
+    math_node = nt.nodes.new("ShaderNodeMath")
+    math_node.operation = "MULTIPLY"
+    math_node.inputs[0].default_value, math_node.inputs[1].default_value = 1.5, 2.0
+    nt.links.new(black.outputs["Color"], bg.inputs["Color"])
+    nt.links.new(math_node.outputs["Value"], bg.inputs["Strength"])
+    w, warnings = export()
+    assert warnings == [] and not w.world.graph and w.world.image is None
+    from ember.engine.nodes.color import blackbody_rec709  # noqa: PLC0415
+    np.testing.assert_allclose(w.world.color, 3.0 * np.maximum(blackbody_rec709(4000.0), 0.0), rtol=1e-6)
 
 
 def test_rotated_environment_matches_blender_lookup():

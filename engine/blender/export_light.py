@@ -17,9 +17,13 @@ Confirmed in blender/blender (5.x):
 - kernel/light/point.h: with use_soft_falloff (the default) a point/spot of radius r is a
   disk of radius r through its centre facing the shading point (uniform by area); without
   it, a sphere (uniform in the subtended cone).
-Approximations: area spread, per-ray-type visibility,
-shadow toggle, light node trees beyond one Emission node and non-uniformly scaled spot
-cones are not modelled (warned).
+- Light node trees (light_shader): the Surface's graph through the node evaluator; a constant
+  (Emission colour x strength, Blackbody, Math...) multiplies the strength, as the kernel
+  multiplies the shader's emission into strength x eval_fac (light/sample.h
+  light_sample_shader_eval); a shader that varies is kept as the light's graph and evaluated
+  per light sample and hit.
+Approximations: area spread, per-ray-type visibility, shadow toggle, photon emission of lights
+whose shader varies, and non-uniformly scaled spot cones are not modelled (warned).
 """
 from __future__ import annotations
 
@@ -29,7 +33,10 @@ import numpy as np
 
 from ..scene import (LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY,
                      RAY_SHADOW, RAY_TRANSMIT)
+from ..nodes.closures import closures
+from ..nodes.program import compile
 from .export_material import find_output, follow_link
+from .export_nodes import export_graph
 
 
 def _unsupported(warn, what: str, name: str) -> None:
@@ -42,7 +49,13 @@ def _unsupported(warn, what: str, name: str) -> None:
 
 
 def light_strength(light, warn) -> np.ndarray:
-    """Cycles' strength (3,): colour x temperature colour x energy x 2^exposure x node emission."""
+    """Cycles' strength (3,): colour x temperature colour x energy x 2^exposure x the shader's
+    emission where it is a constant (light_shader)."""
+    return _base_strength(light, warn) * light_shader(light, warn)[0]
+
+
+def _base_strength(light, warn) -> np.ndarray:
+    """colour x temperature colour x energy x 2^exposure (blender/light.cpp sync_light)."""
     color = np.array(light.color[:3], np.float64)
     if getattr(light, "use_temperature", False):
         tc = getattr(light, "temperature_color", None)
@@ -50,30 +63,46 @@ def light_strength(light, warn) -> np.ndarray:
             color = color * np.array(tc[:3], np.float64)
         else:  # pragma: no cover - older Blender
             warn(f"Light '{light.name}': colour temperature is ignored.")
-    strength = color * float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
-    return strength * _node_emission(light, warn)
+    return color * float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
 
 
-def _node_emission(light, warn) -> np.ndarray:
-    """Multiplier from the light's shader nodes (Cycles uses them when a node tree exists)."""
-    tree = getattr(light, "node_tree", None)
+def light_shader(light, warn) -> tuple:
+    """(factor (3,), graph or None): the light's shader as Cycles evaluates it (light/sample.h
+    light_sample_shader_eval: the emission and background closures its Surface makes multiply
+    the strength x eval_fac). A shader that folds to a constant (Emission colour x strength,
+    Blackbody, Math...) is that constant and no graph; one that varies over the light's
+    samples (Light Falloff, IES, a texture of the direction) is factor 1 and its graph, which
+    the light set evaluates per sample and hit (engine/lights/light_shader.py). No node tree
+    (or use_nodes off): Cycles' default emission of 1; a tree without a Light Output node:
+    nothing (as Cycles renders it)."""
+    tree = getattr(light, "node_tree", None) if getattr(light, "use_nodes", True) else None
     if tree is None:
-        return np.ones(3)
+        return np.ones(3), None
     out = find_output(tree, "ShaderNodeOutputLight")
-    if out is None:
-        return np.ones(3)
-    node = follow_link(out.inputs["Surface"])
-    if node is None:
-        warn(f"Light '{light.name}': its node tree has nothing connected to Surface; it emits nothing.")
-        return np.zeros(3)
-    if node.bl_idname != "ShaderNodeEmission":
-        warn(f"Light '{light.name}': node '{node.name}' in its node tree is not supported; "
-             "using the light colour only.")
-        return np.ones(3)
-    col, stre = node.inputs["Color"], node.inputs["Strength"]
-    if col.is_linked or stre.is_linked:
-        warn(f"Light '{light.name}': textures in its node tree are not supported; using the socket values.")
-    return np.array(col.default_value[:3], np.float64) * float(stre.default_value)
+    owner = f"Light '{light.name}'"
+    if out is None:  # Cycles' graph then has nothing at its output
+        warn(f"{owner}: its node tree has no Light Output node for Cycles; it emits nothing.")
+        return np.zeros(3), None
+    if follow_link(out.inputs["Surface"]) is None:
+        warn(f"{owner}: its node tree has nothing connected to Surface; it emits nothing.")
+        return np.zeros(3), None
+    notes = []
+    graph = export_graph({"surface": out.inputs["Surface"]}, notes.append)
+    try:
+        program = compile(graph, {"surface": "shader"})
+    except (ValueError, KeyError, TypeError, IndexError) as exc:
+        warn(f"{owner}: its node tree could not be evaluated ({exc}); the light colour is used alone.")
+        return np.ones(3), None
+    for note in notes + list(program.warnings):
+        warn(f"{owner}: {note}")
+    if program.constant:
+        made = closures(program.run()["surface"])
+        return sum((np.asarray(c.weight, np.float64) for c in made if c.kind in ("emission", "background")),
+                   np.zeros(3)), None
+    varying = ", ".join(dict.fromkeys(f"'{op.node.label}'" for op in program.ops))
+    warn(f"{owner}: its shader varies over the light ({varying}): evaluated per light sample and hit; "
+         "photon emission takes its emission as 1.")
+    return np.ones(3), graph
 
 
 def light_row(light, name: str, matrix_world: np.ndarray, visible_camera: bool, warn) -> dict | None:
@@ -82,12 +111,15 @@ def light_row(light, name: str, matrix_world: np.ndarray, visible_camera: bool, 
     m = np.asarray(matrix_world, np.float64).reshape(4, 4)
     axes = m[:3, :3].T.copy()  # rows = world x, y, z axes (with scale)
     lengths = np.linalg.norm(axes, axis=1)
-    strength = light_strength(light, warn)
+    factor, graph = light_shader(light, warn)
+    strength = _base_strength(light, warn) * factor
     if not np.any(strength != 0.0):
         return None
     normalize = bool(getattr(light, "normalize", True))
     frame = axes / np.where(lengths > 0, lengths, 1.0)[:, None]
-    row = dict(position=m[:3, 3].copy(), frame=frame, visible=bool(visible_camera), name=name)
+    row = dict(position=m[:3, 3].copy(), frame=frame, visible=bool(visible_camera), name=name, matrix=m[:3, :3].copy())
+    if graph is not None:
+        row["graph"] = graph
     kind = light.type
 
     if kind in ("POINT", "SPOT"):

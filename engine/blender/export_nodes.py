@@ -162,9 +162,24 @@ def _texture_mapping(mapping, context):
     return (mapping.vector_type, t, r, s, axes)
 
 
+def _ies_text(text, context):
+    """An IES Texture's profile as text (engine/nodes/ies.py parses it): its Text datablock, or
+    in External mode its file, as Cycles' sync reads them; None where there is none."""
+    node = context.node
+    if getattr(node, "mode", "INTERNAL") == "EXTERNAL":
+        path = bpy.path.abspath(node.filepath)
+        try:
+            with open(path, encoding="utf-8", errors="replace") as f:
+                return f.read()
+        except OSError:
+            context.warn(f"{node.name}: IES file '{path}' cannot be read")
+            return None
+    return text.as_string() if text is not None else None
+
+
 # Pointer properties by name -> exporter(value, PropContext) of plain data.
 PROPS = {"color_ramp": _color_ramp, "image": image_texels, "mapping": _curve_mapping, "object": _object,
-         "texture_mapping": _texture_mapping}
+         "texture_mapping": _texture_mapping, "ies": _ies_text}
 
 
 class _Export:

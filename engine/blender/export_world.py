@@ -1,4 +1,4 @@
-"""World -> World: constant background or environment image (Cycles' mapping).
+"""World -> World: a constant, an environment image (the fast path), or the world's node graph.
 
 As Cycles' sync_world (intern/cycles/blender/shader.cpp, 5.x): the view layer's world
 override, else the scene world; with a node tree, the World Output Surface link; without
@@ -7,28 +7,37 @@ one, world.color at strength 1; no world -> black. The view layer's Environment 
 world.cycles_visibility.camera and film_transparent (a transparent film shows the background
 black, alpha 1, for now).
 
-Supported node trees: Background (or Emission) whose Color is unlinked, or linked to an
-Environment Texture (equirectangular or mirror ball) whose Vector is unlinked (the ray
-direction) or comes through Mapping nodes from Texture Coordinate Generated/Object. The
-Mapping chain becomes World.env_from_world (Cycles' kernel/svm/mapping_util.h):
-  POINT  R S v + location     VECTOR  R S v     TEXTURE  S^-1 R^T (v - location)
-  NORMAL normalize(R S^-1 v)  with R = Rz Ry Rx (Euler XYZ, util/transform.h euler_to_transform).
-A location is dropped with a warning (it would make the lookup depend on more than the direction).
-Pixels are read with foreach_get into float32; byte images are decoded per their colour space
-(sRGB -> linear by a 256-entry table); float images are scene-linear already. The image is
-looked up nearest-pixel, which is Cycles' Closest interpolation (Linear/Cubic/Smart differ only
-below a pixel).
-Not supported, with a warning: Sky Texture (Blender's Python API cannot bake it at render
-start; the Background's own colour is used), other nodes, linked Strength, per-ray-type
-visibility.
+The Surface is exported as a node graph (export_nodes.export_graph) and compiled:
+- a graph that folds to a constant (Background colour x strength, Blackbody, Math...) is
+  World.color, no table;
+- the fast path: a Background (or Emission) of unlinked Strength whose Color is an Environment
+  Texture with Closest interpolation (one texel per direction, no filtering) whose Vector is
+  unlinked (the ray direction) or comes through Mapping nodes (no Location) from Texture
+  Coordinate Generated/Object: the image itself (World.image, looked up nearest-pixel exactly
+  as Closest reads it) with the Mapping chain as World.env_from_world (Cycles'
+  kernel/svm/mapping_util.h):
+    POINT  R S v + location     VECTOR  R S v     TEXTURE  S^-1 R^T (v - location)
+    NORMAL normalize(R S^-1 v)  with R = Rz Ry Rx (Euler XYZ, util/transform.h euler_to_transform);
+  pixels read with foreach_get into float32, byte images decoded per their colour space;
+- anything else (Sky Texture, Mix of backgrounds, gradients, procedurals, filtered images,
+  Light Path) is World.graph, evaluated at escaped rays and importance sampled from a table of
+  its values (engine/lights/world.py); world.cycles.sampling_method gives the table's
+  resolution (Manual: sample_map_resolution) or none (None).
+Nodes Ember cannot evaluate are warned about with their fallback (engine/nodes/program.py).
+Not supported, with a warning: world volumes; per-ray-type visibility beyond Cycles' world
+ray visibility.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..lights.world import Background
+from ..nodes.closures import closures
+from ..nodes.program import compile
 from ..scene import ENV_PROJECTIONS, RAY_ALL, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, World
 from ..textures import srgb_to_linear
-from .export_material import find_output, follow_link, rgb
+from .export_material import find_output, follow_link
+from .export_nodes import export_graph
 
 MISSING_IMAGE = (1.0, 0.0, 1.0)  # Cycles' colour for an image it cannot load (TEX_IMAGE_MISSING_*)
 _LINEAR_SPACES = {"Linear Rec.709", "scene_linear", "Non-Color"}
@@ -159,8 +168,62 @@ def _environment(node, warn, owner: str) -> dict:
     return dict(image=pixels, projection=projection, env_from_world=_env_from_world(node, warn, owner))
 
 
+def _fast_environment(node, owner: str) -> dict | None:
+    """World fields of the fast path (the module docstring) for the Surface's node, or None
+    where the graph is not exactly that: an Environment Texture read with Closest
+    interpolation, through what _env_from_world follows without a warning, its image loaded
+    and clean."""
+    if node.bl_idname not in ("ShaderNodeBackground", "ShaderNodeEmission") or node.mute:
+        return None
+    col, stre = node.inputs["Color"], node.inputs["Strength"]
+    src = follow_link(col) if col.is_linked else None
+    if stre.is_linked or src is None or src.bl_idname != "ShaderNodeTexEnvironment" or src.mute:
+        return None
+    if src.interpolation != "Closest" or src.projection not in ENV_PROJECTIONS or src.image is None:
+        return None
+    notes = []
+    env = _environment(src, notes.append, owner)
+    if notes or "image" not in env:
+        return None
+    return dict(color=np.ones(3) * float(stre.default_value), **env)
+
+
+def _graph_fields(socket, warn, owner: str) -> dict:
+    """World fields of the Surface `socket`'s node graph: a constant colour where it folds to
+    one, else the graph (World.graph)."""
+    notes = []
+    graph = export_graph({"surface": socket}, notes.append)
+    try:
+        program = compile(graph, {"surface": "shader"})
+        if not program.constant:  # fail here, not in the render processes
+            Background(graph).radiance(np.array([[0.0, 0.0, 1.0], [0.6, 0.0, -0.8]]))
+    except (ValueError, KeyError, TypeError, IndexError) as exc:
+        warn(f"{owner}: its node graph could not be evaluated ({exc}); the background is black.")
+        return dict(color=np.zeros(3))
+    for note in notes + list(program.warnings):
+        warn(f"{owner}: {note}")
+    if program.constant:
+        made = closures(program.run()["surface"])
+        weights = [np.asarray(c.weight, np.float64) for c in made if c.kind in ("background", "emission")]
+        return dict(color=sum(weights, np.zeros(3)))
+    return dict(color=np.ones(3), graph=(graph,))
+
+
+def _map_resolution(world) -> int:
+    """World.map_resolution from Cycles' world sampling settings (the original's: a change
+    of these does not tag the evaluated copy)."""
+    settings = getattr(getattr(world, "original", world), "cycles", None)
+    method = getattr(settings, "sampling_method", "AUTOMATIC")
+    if method == "NONE":
+        return -1
+    if method == "MANUAL":
+        return max(int(getattr(settings, "sample_map_resolution", 1024)), 2)
+    return 0
+
+
 def _world_fields(world, warn) -> dict:
-    """color plus, for an environment, image/projection/env_from_world."""
+    """color, and an image's fields (image/projection/env_from_world) or a graph's
+    (graph/map_resolution)."""
     tree = world.node_tree
     owner = f"World '{world.name}'"
     if tree is None:
@@ -175,27 +238,10 @@ def _world_fields(world, warn) -> dict:
     node = follow_link(out.inputs["Surface"])
     if node is None:
         return dict(color=np.zeros(3))
-    if node.bl_idname not in ("ShaderNodeBackground", "ShaderNodeEmission") or node.mute:
-        warn(f"{owner}: node '{node.name}' ({node.bl_label}) is not supported yet; "
-             "the background is black.")
-        return dict(color=np.zeros(3))
-    col, stre = node.inputs["Color"], node.inputs["Strength"]
-    if stre.is_linked:
-        warn(f"{owner}: the Strength input of '{node.name}' is linked (not supported); using its "
-             "unlinked value.")
-    strength = float(stre.default_value)
-    src = follow_link(col) if col.is_linked else None
-    if src is not None and src.bl_idname == "ShaderNodeTexEnvironment" and not src.mute:
-        env = _environment(src, warn, owner)
-        tint = env.pop("tint", np.ones(3))
-        return dict(color=tint * strength, **env)
-    if col.is_linked:
-        reason = ("Blender's Python API cannot bake a Sky Texture at render start"
-                  if src is not None and src.bl_idname == "ShaderNodeTexSky" else "not supported")
-        name = f" from '{src.name}' ({src.bl_label})" if src is not None else ""
-        warn(f"{owner}: the Color input of '{node.name}' is linked{name}: {reason}; "
-             "using its unlinked value.")
-    return dict(color=np.array(rgb(col), np.float64) * strength)
+    fields = _fast_environment(node, owner) or _graph_fields(out.inputs["Surface"], warn, owner)
+    if fields.get("graph"):
+        fields["map_resolution"] = _map_resolution(world)
+    return fields
 
 
 def export_world(depsgraph, scene, warn) -> World:

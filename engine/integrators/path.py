@@ -177,7 +177,8 @@ class PathTracer:
         if lights.sees_escaped and missed.any():
             r = np.flatnonzero(missed if lit is None else missed & lit)
             c = take(paths.beta, r) * lights.escaped(take(paths.d, r), paths.pdf_prev[r], use_mis[r], camera_ray[r],
-                                                     None if kind is None else kind[r])
+                                                     None if kind is None else kind[r],
+                                                     b.take(r) if lights.world_reads_bounces else None)
             self._add(L, idx[r], self._clamp(c, direct, r), tally, depth, escaped=True)
         emits = self.emissive_prim[hit.prim]
         if lit is not None:
@@ -254,7 +255,8 @@ class PathTracer:
             return
         at = gatherer(active, m)
         u = sampler.get(1 + _GROUPS * rows_of(paths.depth, active) + _LIGHT, at(paths.idx), 3)
-        ls = self.lights.sample(at(paths.p), u[:, 2], u[:, :2], in_unit=True)
+        ls = self.lights.sample(at(paths.p), u[:, 2], u[:, :2], in_unit=True,
+                                bounces=b.take(active) if self.lights.world_reads_bounces else None)
         f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility)
         cos_i = np.abs(dot(ls.wi, at(bsdf.ns)))  # ns: may be perturbed (normal maps)
         pdf_b_mis = at(q) * pdf_b if self.strategy.mis else 0.0

@@ -71,7 +71,7 @@ import numpy as np
 from .. import sampling
 from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN
 from ..vec import dot, scale, take
-from . import environment, shapes
+from . import shapes
 from .light_set import LightSet, avg
 
 # Emitter groups beyond the analytic kinds (LIGHT_POINT .. LIGHT_DISK are 0..4).
@@ -240,9 +240,8 @@ class PhotonEmitter:
         R2 = self.radius**2
         # Environment: the uncompensated table (see the module docstring).
         env = lights.env
-        if env is not None and env.compensated:
-            env = environment.EnvironmentMap(env.image, env.scale, env.projection, env.env_from_world,
-                                             compensate=False)
+        if env is not None:
+            env = env.uncompensated()
         self.env = env
         group = [an.kind.astype(np.int64), np.full(n_tri, TRIANGLE)]
         power = [self._analytic_power(), 2.0 * np.pi * lights.tri_area[:, None] * lights.tri_Le]

@@ -229,6 +229,12 @@ class EnvironmentMap:
         valid &= (pdf > 0) & np.isfinite(pdf)
         return EnvironmentSample(wi, np.where(valid[:, None], Le, 0.0), np.where(valid, pdf, 0.0), valid)
 
+    def uncompensated(self) -> "EnvironmentMap":
+        """The same light with the uncompensated table (photon emission)."""
+        if not self.compensated:
+            return self
+        return EnvironmentMap(self.image, self.scale, self.projection, self.env_from_world, compensate=False)
+
     @property
     def nbytes(self) -> int:
         """Bytes held by the sampling table (the image is the scene's)."""

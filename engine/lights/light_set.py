@@ -1,10 +1,12 @@
 """All emitters of a scene behind one interface: choose one by power, sample it, evaluate it.
 
 Lights are the analytic ones of `Scene.lights` (indices 0..L-1), the emissive triangles
-(L..L+E-1) and, last, the world's environment map when the world is an image that varies
-(index L+E; see environment.world_light). A constant world is not sampled (BSDF sampling
-covers it well); rays that escape the scene collect the world through `escaped`, with the
-balance heuristic against the environment's light-sampling pdf. Like Cycles, light objects
+(L..L+E-1) and, last, the world's light when the world varies (index L+E): an environment
+image's map (environment.EnvironmentMap) or a node program's table (world.WorldMap; see
+world.world_emitters). A constant world is not sampled (BSDF sampling covers it well); rays
+that escape the scene collect the world through `escaped` - the image's pixel, or the
+program's value for the ray's kind and bounces (Light Path) - with the balance heuristic
+against the world's light-sampling pdf. Like Cycles, light objects
 are not geometry: they neither occlude shadow rays nor stop other rays; a ray passing through
 one collects its emission.
 Emissive triangles are ordinary (two-sided) geometry found through `light_of_prim`.
@@ -32,7 +34,7 @@ import numpy as np
 from .. import sampling
 from ..scene import LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, RAY_ALL, RAY_CAMERA, Lights, Materials, Mesh, World
 from ..vec import dot, max3, scale, take
-from . import environment, light_tree, shapes
+from . import light_shader, light_tree, shapes, world as world_light
 
 # From this many finite lights on, a light tree chooses them (below: power alone, as the seed
 # says): below it the tree's cost per shading point is not reliably repaid at equal time
@@ -78,17 +80,21 @@ class LightSample:
 
 class LightSet:
     def __init__(self, lights: Lights, mesh: Mesh, materials: Materials, world: World, accel, scene_radius: float,
-                 strategy: str = "mis", tree_min_lights: int | None = None, surface_emission=None):
+                 strategy: str = "mis", tree_min_lights: int | None = None, surface_emission=None, camera=None):
         """strategy: Settings.strategy; under "mis" the environment's table is MIS-compensated.
         tree_min_lights: the light tree's threshold (default TREE_MIN_LIGHTS).
         surface_emission: for materials whose emission varies over the surface (textured
         emitters), an object with `varying` (M,) bool per material and a call (prim, bary, p,
         n, wo) -> (K,3) radiance at points of triangles (engine/nodes/material.py
         SurfaceEmission), or None. Such triangles are chosen by their mean radiance over a few
-        points and sampled uniformly, and a sample's radiance is the material's at its point."""
+        points and sampled uniformly, and a sample's radiance is the material's at its point. camera: the
+        scene's Camera, for a world program's Camera and Window coordinates (None: at the
+        origin, looking down -z)."""
         self.lights = lights
         self.n_analytic = len(lights)
         self.scene_radius = scene_radius
+        # Lights whose shader varies: their programs multiply Le per sample and hit.
+        self.shaders = light_shader.LightShaders(lights) if lights.graphs else None
         # Emissive triangles.
         tri_Le = materials.emission[mesh.material] if mesh.n_triangles else np.zeros((0, 3))
         emissive = np.any(tri_Le != 0, axis=-1) & (accel.area > 0) if mesh.n_triangles else np.zeros(0, bool)
@@ -111,8 +117,13 @@ class LightSet:
         self.tri_lit = max3(np.abs(self.tri_Le)) > 0 if len(self.tri_Le) else np.zeros(0, bool)
         self.light_of_prim = np.full(max(mesh.n_triangles, 1), -1, np.int64)
         self.light_of_prim[self.tri_prim] = self.n_analytic + np.arange(len(self.tri_prim))
-        # World: a constant radiance (not sampled) or an environment map (sampled, last index).
-        self.world, self.env = environment.world_light(world, compensate=strategy == "mis")
+        # World: a constant radiance (not sampled), or an image's map or a node program with its
+        # table (sampled, last index); `background` the program escaped rays evaluate.
+        self.world, self.background, self.env = world_light.world_emitters(world, strategy == "mis", camera)
+        bg = self.background
+        self.world_reads_path = bg is not None and bg.reads_path  # escaped rays need their kinds
+        self.world_reads_bounces = bg is not None and bg.reads_bounces  # ... and bounce counts
+        self.world_reads_camera = bg is not None and bg.reads_camera  # the table follows the camera
         self.world_visible = bool(world.visible)
         # Environment power as pbrt-v4's infinite lights: pi R^2 x integral of L over the sphere.
         env_power = [np.pi * scene_radius**2 * avg(self.env.power_integral)] if self.env is not None else []
@@ -131,7 +142,7 @@ class LightSet:
         self.kinds_present = sorted(set(lights.kind.tolist()))
         self.hittable = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind != LIGHT_SUN))
         self.suns = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind == LIGHT_SUN))
-        self.sees_escaped = bool(len(self.suns)) or bool(self.world.max() > 0) or self.env is not None
+        self.sees_escaped = bool(len(self.suns)) or bool(self.world.max() > 0) or self.env is not None or bg is not None
         # Ray visibility (Cycles' light and world visibility): None where everything sees all.
         tri_vis = mesh.visibility[self.tri_prim] if mesh.visibility is not None else np.full(len(self.tri_prim), RAY_ALL)
         vis = np.concatenate([lights.ray_visibility, tri_vis, [world.ray_visibility] if self.env is not None else []
@@ -244,9 +255,10 @@ class LightSet:
         return index, pmf
 
     # ---- next-event estimation ------------------------------------------------------------
-    def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray, in_unit=False) -> LightSample:
+    def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray, in_unit=False, bounces=None) -> LightSample:
         """One light sample per shading point p (N,3) float64; u_select (N,), u (N,2) (in_unit:
-        known to lie in [0, 1), a Sampler's numbers: not clamped again)."""
+        known to lie in [0, 1), a Sampler's numbers: not clamped again); bounces: a Bounces of
+        the N paths, for a world program reading their counts (world_reads_bounces), or None."""
         n = len(p)
         if self.tree is None and self.n_analytic == 0 and self.env is None:
             return self._sample_triangles(p, u_select, u, in_unit)
@@ -274,7 +286,7 @@ class LightSet:
         is_env = np.False_ if only_triangles else index == self.env_index
         if is_env.any():
             rows, r = rows_of(is_env)
-            e = self.env.sample(u[r])
+            e = self.env.sample(u[r]) if bounces is None else self.env.sample(u[r], bounces=bounces.take(rows))
             put(rows, shapes.ShapeSample(e.wi, e.Le, e.pdf, p[r] + e.wi * 1e30, np.zeros(len(rows), bool)))
         target_prim = np.full(n, -1, np.int64)
         if is_tri.any():
@@ -286,7 +298,11 @@ class LightSet:
             rows, r = rows_of((index < self.n_analytic)
                               & (self.lights.kind[np.minimum(index, max(self.n_analytic - 1, 0))] == kind))
             if len(rows):
-                put(rows, shapes.sample_analytic(kind, self.lights, index[r], p[r], u[r]))
+                ss = shapes.sample_analytic(kind, self.lights, index[r], p[r], u[r])
+                if self.shaders is not None:  # shaders that vary: their emission at the points sampled
+                    Le = self.shaders.apply(index[r], p[r], ss.wi, ss.Le, ss.target, ss.finite)
+                    ss = shapes.ShapeSample(ss.wi, Le, ss.pdf, ss.target, ss.finite)
+                put(rows, ss)
         wi, Le, pdf_dir, target, finite = (out[k] for k in ("wi", "Le", "pdf", "target", "finite"))
         delta = self.delta[index]
         pdf = np.where(delta, pmf, pmf * pdf_dir)
@@ -359,25 +375,36 @@ class LightSet:
         lights = self.lights
         for i in self.hittable.tolist():
             h = shapes.hit_analytic(int(lights.kind[i]), lights, i, o, d, tmax)
-            self._add_weighted(total, i, h, pdf_bsdf, use_mis, camera, kind, o)
+            self._add_weighted(total, i, h, pdf_bsdf, use_mis, camera, kind, o, d)
         return total
 
     def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray,
-                kind: np.ndarray = None) -> np.ndarray:
-        """Radiance (N,3) for rays leaving the scene along d: suns and the environment map
-        (MIS-weighted like `emission_along`), or the constant world (weight 1: it is never
-        light-sampled). Camera rays see the world only if it is visible; with kind (N,), rays
-        see only what is visible to their kind."""
+                kind: np.ndarray = None, bounces=None) -> np.ndarray:
+        """Radiance (N,3) for rays leaving the scene along d: suns and the world's light
+        (MIS-weighted like `emission_along`; a world program without a table and the constant
+        world weigh 1: they are never light-sampled). Camera rays see the world only if it is
+        visible; with kind (N,), rays see only what is visible to their kind. A world program
+        reads the rays' kinds (kind, else camera) and bounces (a Bounces of the N rays, or None:
+        none counted) where Light Path asks (world_reads_path, world_reads_bounces)."""
         total = np.zeros((len(d), 3))
         for i in self.suns.tolist():
-            self._add_weighted(total, i, shapes.sun_hit(self.lights, i, d), pdf_bsdf, use_mis, camera, kind)
+            self._add_weighted(total, i, shapes.sun_hit(self.lights, i, d), pdf_bsdf, use_mis, camera, kind, None, d)
         seen = ~camera | self.world_visible
         if kind is not None and self.partial_visibility:
             seen = seen & ((kind & self.world_visibility) != 0)
-        if self.env is not None:
+        if self.background is not None:
+            rows = np.flatnonzero(seen)
+            Le = np.zeros((len(d), 3))
+            if len(rows):
+                flags = world_light.path_flags(None if kind is None else kind[rows], camera[rows], len(rows)) \
+                    if self.world_reads_path else world_light.PATH_EMISSION
+                b = bounces.take(rows) if bounces is not None and self.world_reads_bounces else None
+                Le[rows] = self.background.radiance(take(d, rows), flags, b)
+        elif self.env is not None:
             Le = self.env.eval(d)
+        if self.env is not None or self.background is not None:
             w = np.ones(len(d))
-            if np.any(use_mis):
+            if self.env is not None and np.any(use_mis):
                 pdf_light = self.env_pmf * self.env.pdf(d)
                 w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
             total += np.where(seen[:, None], Le * w[:, None], 0.0)
@@ -385,9 +412,9 @@ class LightSet:
             total += np.where(seen[:, None], self.world, 0.0)
         return total
 
-    def _add_weighted(self, total, i, h: shapes.LightHit, pdf_bsdf, use_mis, camera, kind=None, o=None):
+    def _add_weighted(self, total, i, h: shapes.LightHit, pdf_bsdf, use_mis, camera, kind=None, o=None, d=None):
         """total += gain x Le[i] x MIS weight on the rays that hit light i (h; from origins o,
-        (N,3); None for infinite lights)."""
+        (N,3), None for infinite lights; along d (N,3), for a light whose shader varies)."""
         hit = h.hit
         if not self.lights.visible[i]:
             hit = hit & ~camera
@@ -404,5 +431,10 @@ class LightSet:
         pdf_light = pmf * h.pdf
         w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
         a = np.where(hit, h.gain * w, 0.0)
+        if self.shaders is not None and self.shaders.has[i]:
+            r = np.flatnonzero(hit)
+            P = -d[r] if o is None else o[r] + d[r] * h.t[r, None]  # a sun: the direction it shines along
+            total[r] += a[r, None] * self.lights.Le[i] * self.shaders.factor(i, P, d[r], h.t[r])
+            return
         for k in range(3):
             total[:, k] += a * self.lights.Le[i, k]

@@ -46,12 +46,14 @@ class LightHit:
 
     hit (N,) bool; gain (N,) radiance factor: the radiance is gain x Le of the light (the spot
     attenuation, else 1); pdf (N,) solid-angle pdf (1/sr) with which next-event estimation
-    from the ray's origin samples that direction, without the selection pmf.
+    from the ray's origin samples that direction, without the selection pmf; t (N,) the
+    distance along the ray to the light where hit (inf for suns; a light's shader reads it).
     """
 
     hit: np.ndarray
     gain: np.ndarray
     pdf: np.ndarray
+    t: np.ndarray = None
 
 
 def _avg(c):
@@ -203,7 +205,7 @@ def hit_analytic(kind, lights: Lights, i: int, o, d, tmax) -> LightHit:
             pdf_dir = np.divide(1.0, 2.0 * np.pi * omc, out=np.zeros(n), where=omc > 0)
         if kind == LIGHT_SPOT:
             gain = spot_attenuation(lights, i, -d)  # from the light towards o
-        return LightHit(hit, gain, pdf_dir)
+        return LightHit(hit, gain, pdf_dir, t)
     z = frame[2]
     dz = d @ z
     t = np.divide(-(f @ z), dz, out=np.full(n, -1.0), where=dz != 0)
@@ -219,7 +221,7 @@ def hit_analytic(kind, lights: Lights, i: int, o, d, tmax) -> LightHit:
     # The emitting face looks along -z: a ray meets it travelling towards +z.
     hit = inside & (dz > 0) & (t > 0) & (t < tmax)
     pdf_dir = np.divide(t * t, a * dz, out=np.zeros(n), where=(dz > 0) & (a > 0))
-    return LightHit(hit, gain, pdf_dir)
+    return LightHit(hit, gain, pdf_dir, t)
 
 
 def sun_hit(lights: Lights, i: int, d) -> LightHit:
@@ -227,9 +229,9 @@ def sun_hit(lights: Lights, i: int, d) -> LightHit:
     half = lights.sun_half_angle[i]
     n = len(d)
     if half <= 0:
-        return LightHit(np.zeros(n, bool), np.ones(n), np.zeros(n))
+        return LightHit(np.zeros(n, bool), np.ones(n), np.zeros(n), np.full(n, np.inf))
     omc = one_minus_cos(half)
     # 1 - cos(angle to the axis) compared without cancellation via the chord length.
     chord2 = dot(d - lights.frame[i, 2], d - lights.frame[i, 2])
     hit = 0.5 * chord2 <= omc
-    return LightHit(hit, np.ones(n), np.full(n, 1.0 / (2.0 * np.pi * omc)))
+    return LightHit(hit, np.ones(n), np.full(n, 1.0 / (2.0 * np.pi * omc)), np.full(n, np.inf))
