@@ -58,6 +58,9 @@ RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, RAY_SHADOW = 1, 2, 4, 8, 16
 RAY_ALL = 31
 HOLDOUT = 32
 
+# Cycles' attribute types (Mesh.attributes' type codes index this).
+ATTRIBUTE_TYPES = ("float", "float2", "float3", "float4", "rgba")
+
 
 def _f64(a, shape_tail=()):
     a = np.ascontiguousarray(a, dtype=np.float64)
@@ -81,6 +84,20 @@ class Mesh:
     render's world: shifted with the vertices, see recentred); object_texspace (B,2,3) its
     texture space (location, size) in object space: Generated maps location - size ..
     location + size to [0, 1]^3. None with `objects`.
+
+    What node programs read beyond that (engine/nodes/hits.py), each None unless a material
+    of the scene reads it (engine/blender/export.py decides):
+    attributes: {name: (values, types)} the mesh attributes programs read by Cycles' names
+    (engine/nodes/state.py), aligned with the triangles: values (T,3,c) float32 per corner in
+    the triangles' corner order (a face's or triangle's value on all three corners where
+    some mesh has the attribute per corner) or (T,c) per triangle; types (B,) int8 per object
+    (one row for all triangles without `objects`): the Cycles type of the object's attribute,
+    an index into ATTRIBUTE_TYPES, -1 where its mesh has none.
+    object_attributes: {name: (B,4) float64} Object and Instancer attributes (custom
+    properties) by Cycles' prefixed names. object_info (B,6) float64: the object's Color
+    (RGBA), Pass Index and Cycles' random number; instancer (B,5) float64: the instancer's
+    generated coordinates (3) and UV (2) at an instance (zeros for other objects);
+    material_pass_index (M,) float64: each material's Pass Index.
     """
 
     vertices: np.ndarray
@@ -92,6 +109,11 @@ class Mesh:
     objects: np.ndarray = None
     object_matrix: np.ndarray = None
     object_texspace: np.ndarray = None
+    attributes: dict = None
+    object_attributes: dict = None
+    object_info: np.ndarray = None
+    instancer: np.ndarray = None
+    material_pass_index: np.ndarray = None
 
     def __post_init__(self):
         if self.uvs is None:

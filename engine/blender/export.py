@@ -90,7 +90,7 @@ def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
             if flags is None:  # Cycles' ray visibility; an object no ray sees is left out
                 flags = visibility[key] = ray_visibility(ob) | (HOLDOUT if getattr(ob, "is_holdout", False) else 0)
             if flags & RAY_ALL:
-                meshes.add(ob, inst.matrix_world.copy(), flags)
+                meshes.add(ob, inst.matrix_world.copy(), flags, inst)
         elif kind == "LIGHT":
             row = export_light(ob, inst.matrix_world.copy(), warn)
             if row is not None:

@@ -42,16 +42,29 @@ def _read(collection, key: str, count: int, width: int) -> np.ndarray:
 
 class MeshAttributes:
     """A Blender mesh's attributes by Cycles' names (module docstring). Computed on first use
-    and kept: the loop triangles, tangents, pointiness and islands."""
+    and kept: the loop triangles, tangents, pointiness and islands.
 
-    def __init__(self, mesh):
+    triangle_loops (T,3), corner_vert (L,), triangle_faces (T,): the loop triangles' corners,
+    each corner's vertex and each triangle's face where the caller has them already (the mesh
+    export computes them faster than Blender's per-element loop triangle properties); read
+    from the mesh otherwise."""
+
+    def __init__(self, mesh, triangle_loops=None, corner_vert=None, triangle_faces=None):
         self.mesh = mesh
         self._cache: dict = {}
         tris = mesh.loop_triangles
         t = len(tris)
-        self.triangle_loops = _read(tris, "loops", t, 3).astype(np.int64)
-        self.triangle_verts = _read(tris, "vertices", t, 3).astype(np.int64)
-        self.triangle_faces = _read(tris, "polygon_index", t, 1).astype(np.int64)
+        if triangle_loops is None:
+            self.triangle_loops = _read(tris, "loops", t, 3).astype(np.int64)
+            self.triangle_verts = _read(tris, "vertices", t, 3).astype(np.int64)
+        else:
+            self.triangle_loops = np.asarray(triangle_loops, np.int64).reshape(-1, 3)
+            if corner_vert is None:
+                corner_vert = _read(mesh.loops, "vertex_index", len(mesh.loops), 1).astype(np.int64)
+            self.triangle_verts = np.asarray(corner_vert, np.int64)[self.triangle_loops]
+        if triangle_faces is None:
+            triangle_faces = _read(mesh.loop_triangle_polygons, "value", t, 1)
+        self.triangle_faces = np.asarray(triangle_faces, np.int64).reshape(-1)
 
     def render_uv_name(self) -> str | None:
         for layer in self.mesh.uv_layers:
@@ -116,14 +129,17 @@ class MeshAttributes:
 
         mesh = self.mesh
         co = _read(mesh.vertices, "co", len(mesh.vertices), 3).astype(np.float32)
-        normals = _read(mesh.vertex_normals, "vector", len(mesh.vertices), 3)
+        # The corner normals: the vertex normals where the mesh's normals are per vertex, and what
+        # Cycles' vertex normals become where they are per corner (it splits the mesh's edges
+        # there: blender/mesh.cpp mesh_split_edges_for_corner_normals).
+        normals = _read(mesh.corner_normals, "vector", len(mesh.loops), 3)
         verts = self.triangle_verts
-        smooth = _read(mesh.loop_triangles, "use_smooth", len(verts), 1).astype(bool)
+        smooth = _read(mesh.polygons, "use_smooth", len(mesh.polygons), 1).astype(bool)[self.triangle_faces]
         p = co[verts].astype(np.float32)
         cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]).astype(np.float32)
         length = np.linalg.norm(cross, axis=1).astype(np.float32)[:, None]
         flat = np.where(length > 0.0, cross / np.where(length > 0.0, length, 1.0), np.array([1.0, 0.0, 0.0]))
-        corner_normals = np.where(smooth[:, None, None], normals[verts], flat[:, None, :]).reshape(-1, 3)
+        corner_normals = np.where(smooth[:, None, None], normals[self.triangle_loops], flat[:, None, :]).reshape(-1, 3)
         uv = _read(mesh.uv_layers[uv_name].data, "uv", len(mesh.loops), 2)[self.triangle_loops].reshape(-1, 2)
         tri = bpy.data.meshes.new("ember_mikktspace")
         try:
@@ -164,6 +180,30 @@ class MeshAttributes:
         count = np.bincount(edges.ravel(), minlength=n)[:, None]
         out = np.where(count > 0, total / np.maximum(count, 1), 0.0)
         return out[:, 0] if values.ndim == 1 else out
+
+
+def triangle_values(found, attributes: MeshAttributes, kept=None):
+    """An attribute of MeshAttributes.get, (type, domain, values), as the mesh export carries
+    it: (type, (T,3,c) float32 per corner of each loop triangle in Blender's corner order, or
+    (T,c) float32 per triangle). kept (T,): the loop triangles the export keeps (None: all)."""
+    kind, domain, values = found
+    v = np.asarray(values)
+    v = v.reshape(len(v), -1)
+    loops, verts, faces = attributes.triangle_loops, attributes.triangle_verts, attributes.triangle_faces
+    rows = np.arange(len(loops)) if kept is None else np.asarray(kept, np.int64)
+    if domain == "point":
+        out = v[verts[rows]]
+    elif domain == "corner":
+        out = v[loops[rows]]
+    elif domain == "triangle_corner":
+        out = v.reshape(len(loops), 3, -1)[rows]
+    elif domain == "face":
+        out = v[faces[rows]]
+    elif domain == "triangle":
+        out = v[rows]
+    else:  # one value for the mesh
+        out = np.broadcast_to(v.reshape(1, -1), (len(rows), v.size))
+    return kind, np.ascontiguousarray(out, np.float32)
 
 
 def _rgba(value):

@@ -41,6 +41,7 @@ from ..scene import (EXT_CLIP, EXT_EXTEND, EXT_MIRROR, EXT_REPEAT, FRESNEL_DIELE
                      FRESNEL_NONE, INTERP_CLOSEST, INTERP_LINEAR, LOBE_DIELECTRIC, LOBE_DIFFUSE,
                      LOBE_MICROFACET, LOBE_PHONG, LOBE_TRANSPARENT, MAT_DIFFUSE, MAT_EMISSION_ONLY,
                      MAT_NODES, MAT_PHONG, TEX_ALPHA, TEX_COLOR, Materials)
+from ..nodes.bump import bump_from_displacement
 from ..nodes.hits import provides
 from ..nodes.material import compile_material, with_phong
 from ..textures import LUMINANCE
@@ -304,6 +305,8 @@ class _Converter:
         if src.space != "TANGENT":
             self.note(f"'{src.name}' {src.space} space (ignored)")
             return
+        if src.uv_map:  # the tangents of the render UV map only here (the node evaluator reads any)
+            self.note(f"'{src.name}' on UV map '{src.uv_map}' (read as the render UV map)")
         color, slot = self.color(src, "Color")
         if slot < 0:
             return
@@ -543,11 +546,12 @@ def material_row(mat, textures: _Textures, warn, phong: bool = False) -> dict:
                         lobes=[dict(kind=LOBE_TRANSPARENT, weight=(1.0, 1.0, 1.0), color=(1.0, 1.0, 1.0))])
     conv = _Converter(mat, textures, phong)
     conv.shader(surface, np.ones(3))
-    if conv.notes:  # what the lobe conversion approximates, the node evaluator may not
+    displaced = follow_link(out.inputs["Displacement"]) is not None
+    if conv.notes or displaced:  # what the lobe conversion approximates (or ignores), the node evaluator may not
         row = _node_row(mat, out, phong, warn)
         if row is not None:
             return row
-    if follow_link(out.inputs["Displacement"]) is not None:
+    if displaced:
         conv.note("displacement (ignored)")
     if conv.notes:
         warn(f"Material '{name}': approximated " + "; ".join(conv.notes) + ".")
@@ -569,7 +573,16 @@ def _node_row(mat, out, phong: bool, warn) -> dict | None:
     a program yet: engine/nodes/hits.py provides). A varying emission's table value is its mean
     over probe points (engine/nodes/material.py): what says the material emits at all."""
     notes = []
-    graph = export_graph({"surface": out.inputs["Surface"]}, notes.append)
+    sockets = {"surface": out.inputs["Surface"]}
+    # Displacement: as Cycles' Bump Only (a shading normal from the height, material.py), and
+    # in object space for Displacement and Bump, whose moving of the mesh Ember leaves out.
+    method = getattr(mat, "displacement_method", "BUMP")
+    displaced = follow_link(out.inputs["Displacement"]) is not None
+    if displaced and method != "DISPLACEMENT":
+        sockets["displacement"] = out.inputs["Displacement"]
+    graph = export_graph(sockets, notes.append)
+    if "displacement" in sockets:
+        graph = bump_from_displacement(graph, object_space=method == "BOTH")
     if phong:
         graph = with_phong(graph)
     try:
@@ -582,13 +595,15 @@ def _node_row(mat, out, phong: bool, warn) -> dict | None:
     if not all(provides(field) for field in compiled.program.reads):  # the renderer cannot run it yet
         return None
     notes += list(compiled.notes)
-    if follow_link(out.inputs["Displacement"]) is not None:
-        notes.append("displacement (ignored)")
+    if displaced and method != "BUMP":
+        notes.append("displacement of the mesh (ignored" + ("; its bump is rendered)" if method == "BOTH" else ")"))
     if notes:
         warn(f"Material '{mat.name}': approximated " + "; ".join(notes) + ".")
     base = next((lobe.get("color") for lobe in compiled.lobes if lobe["kind"] == LOBE_DIFFUSE), (0.0, 0.0, 0.0))
     row = dict(kind=MAT_NODES, base_color=tuple(base), emission=tuple(compiled.emission_mean), name=mat.name,
                lobes=compiled.lobes, graph=None if compiled.constant else graph)
+    if not compiled.constant:
+        row["reads"] = compiled.reads
     if not compiled.lobes:
         row["kind"] = MAT_EMISSION_ONLY
     return row
@@ -627,6 +642,11 @@ class MaterialTable:
 
     def __len__(self):
         return len(self._rows)
+
+    def reads(self, i: int) -> frozenset:
+        """The state fields material i's node programs read (engine/nodes/state.py; none for a
+        material without a program): what the mesh export carries for it."""
+        return self._rows[i].get("reads", frozenset())
 
     def materials(self) -> Materials:
         return Materials.make(self._rows, self._textures.slots, self._textures.images)

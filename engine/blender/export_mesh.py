@@ -14,10 +14,15 @@ singular transform are dropped too, and reported as such, naming the objects.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..errors import EmberError
-from ..scene import RAY_ALL, Mesh
+from ..nodes.hash import uint_to_float
+from ..nodes.mesh_attributes import object_random
+from ..scene import ATTRIBUTE_TYPES, RAY_ALL, Mesh
+from .export_attributes import MeshAttributes, object_attribute, triangle_values
 
 # A triangle is degenerate when |e1 x e2| <= EPS_SIN * |e1| |e2| (collinear in float32).
 EPS_SIN = 1e-7
@@ -26,9 +31,10 @@ CHUNK_ELEMENTS = 1 << 21
 
 
 class _Proto:
-    __slots__ = ("positions", "triangles", "normals", "uvs", "slot", "n_dropped", "n_nonfinite", "name", "texspace")
+    __slots__ = ("positions", "triangles", "normals", "uvs", "slot", "n_dropped", "n_nonfinite", "name", "texspace",
+                 "kept", "attributes")
 
-    def __init__(self, positions, triangles, normals, uvs, slot, n_dropped, n_nonfinite=0, name=""):
+    def __init__(self, positions, triangles, normals, uvs, slot, n_dropped, n_nonfinite=0, name="", kept=None):
         self.positions = positions  # (V,3) float32 local
         self.triangles = triangles  # (T,3) int32, degenerate ones removed
         self.normals = normals  # (T,3,3) float32 local corner normals
@@ -38,6 +44,10 @@ class _Proto:
         self.n_nonfinite = n_nonfinite  # triangles with a NaN/Inf vertex removed
         self.name = name  # the object it was first extracted from (for messages)
         self.texspace = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])  # (location, size): Generated's box
+        self.kept = kept  # (T,) the loop triangles kept, or None: all of them
+        # Named attributes node programs read (Cycles' names): name -> (type, (T,3,c) per corner or
+        # (T,c) per triangle, float32), or None where the mesh has no such attribute.
+        self.attributes: dict = {}
 
 
 def _ints(collection, prop, n) -> np.ndarray:
@@ -100,6 +110,20 @@ def corner_tris(me, positions=None, corner_vert=None) -> np.ndarray:
     return tris
 
 
+def _corners(me, pos=None):
+    """(corner_vert (L,), loops (T,3)): each corner's vertex and the loop triangles' corners."""
+    n_loop = len(me.loops)
+    if pos is None:
+        pos = np.empty(len(me.vertices) * 3, np.float32)
+        me.attributes["position"].data.foreach_get("vector", pos)
+    cv = me.attributes.get(".corner_vert")
+    if cv is not None and cv.domain == "CORNER" and len(cv.data) == n_loop:
+        corner_vert = _ints(cv.data, "value", n_loop)
+    else:
+        corner_vert = _ints(me.loops, "vertex_index", n_loop)
+    return corner_vert, corner_tris(me, pos, corner_vert)
+
+
 def extract_mesh(ob) -> _Proto | None:
     """Triangles of an evaluated object (modifiers applied). None if it has none."""
     me = ob.to_mesh()
@@ -113,12 +137,7 @@ def extract_mesh(ob) -> _Proto | None:
         attrs = me.attributes
         pos = np.empty(n_vert * 3, np.float32)
         attrs["position"].data.foreach_get("vector", pos)
-        cv = attrs.get(".corner_vert")
-        if cv is not None and cv.domain == "CORNER" and len(cv.data) == n_loop:
-            corner_vert = _ints(cv.data, "value", n_loop)
-        else:
-            corner_vert = _ints(me.loops, "vertex_index", n_loop)
-        loops = corner_tris(me, pos, corner_vert)
+        corner_vert, loops = _corners(me, pos)
         mi = attrs.get("material_index")
         if mi is not None and mi.domain == "FACE" and mi.data_type == "INT":
             tri_poly = _ints(me.loop_triangle_polygons, "value", n_tri)
@@ -136,6 +155,25 @@ def extract_mesh(ob) -> _Proto | None:
     proto = _finish_proto(pos.reshape(-1, 3), tris, normals, corner_uv[loops], slot)
     proto.name, proto.texspace = ob.name, texspace
     return proto
+
+
+def add_attributes(proto: _Proto, ob, names) -> None:
+    """The named attributes `names` (Cycles' names) node programs read, into proto.attributes,
+    from the evaluated object the proto was extracted from (or another of the same mesh). Apart
+    from extract_mesh: which materials an object has, and so what they read, is known only once
+    the mesh is known to have triangles (an object without any converts no material)."""
+    me = ob.to_mesh()
+    try:
+        if me is None:
+            return
+        me.calc_loop_triangles()
+        corner_vert, loops = _corners(me)
+        found = MeshAttributes(me, loops, corner_vert)
+        for name in names:
+            value = found.get(name)
+            proto.attributes[name] = None if value is None else triangle_values(value, found, proto.kept)
+    finally:
+        ob.to_mesh_clear()
 
 
 def _texspace(ob, me) -> np.ndarray:
@@ -188,7 +226,9 @@ def _finish_proto(pos, tris, normals, uvs, slot) -> _Proto:
         valid[unsure] = (c2u > (EPS_SIN * EPS_SIN) * l2u) & np.isfinite(c2u) & np.isfinite(l2u)
     valid &= finite_tri
     n_dropped = int(n_tri - np.count_nonzero(valid)) - n_nonfinite
+    kept = None
     if n_dropped:
+        kept = np.flatnonzero(valid)
         tris, normals, uvs, slot = tris[valid], normals[valid], uvs[valid], slot[valid]
         a, b, c = a[valid], b[valid], c[valid]
     # Guard against zero/non-finite corner normals: use the face normal there.
@@ -200,7 +240,7 @@ def _finish_proto(pos, tris, normals, uvs, slot) -> _Proto:
         normals[ti, ci] = face / np.linalg.norm(face, axis=1)[:, None]
     return _Proto(pos, np.ascontiguousarray(tris, np.int32), np.ascontiguousarray(normals, np.float32),
                   np.ascontiguousarray(uvs, np.float32), np.ascontiguousarray(slot, np.int32), n_dropped,
-                  n_nonfinite)
+                  n_nonfinite, kept=kept)
 
 
 def _shifted(M: np.ndarray, shift: np.ndarray) -> np.ndarray:
@@ -215,18 +255,84 @@ def _normalize_rows(v: np.ndarray) -> np.ndarray:
     return v / np.where(n > 0, n, 1.0)[..., None]
 
 
+# What node programs read (engine/nodes/state.py) that the export carries in the Mesh; the
+# rest is computed at hits from the mesh's own arrays ("uv", "generated": Mesh.uvs, the
+# object transforms and texture spaces).
+_OBJECT_INFO = frozenset(("object_color", "object_alpha", "object_index", "object_random"))
+_FROM_HITS = frozenset(("", "uv", "generated"))
+_OBJECT_PREFIXES = ("\x01object:", "\x01instancer:")
+
+
+class Needs(NamedTuple):
+    """What a set of materials' programs read that the export must carry: named mesh
+    attributes, Object / Instancer attributes (Cycles' prefixed names), Object Info's per-object
+    values (object_info), the materials' Pass Index."""
+
+    mesh: frozenset = frozenset()
+    objects: frozenset = frozenset()
+    info: bool = False
+    material_index: bool = False
+
+    @staticmethod
+    def of(reads) -> "Needs":
+        """From the fields programs read (engine/nodes/program.py Program.reads)."""
+        names = {r[len("attribute:"):] for r in reads if r.startswith("attribute:")}
+        objects = frozenset(n for n in names if n.startswith(_OBJECT_PREFIXES))
+        return Needs(frozenset(names - objects - _FROM_HITS), objects, bool(_OBJECT_INFO & set(reads)),
+                     "material_index" in reads)
+
+    def __or__(self, other: "Needs") -> "Needs":
+        return Needs(self.mesh | other.mesh, self.objects | other.objects, self.info or other.info,
+                     self.material_index or other.material_index)
+
+    @property
+    def per_object(self) -> bool:
+        return bool(self.objects) or self.info
+
+
+def _object_record(ob, inst, needs: Needs):
+    """(object_info (6,) or None, {attribute name: RGBA}) of an instance, as Cycles' object sync
+    sets them (blender/object.cpp): Color, Pass Index and the random number (the depsgraph
+    instance's random_id for an instance, else the hash of the object's name), the Object and
+    Instancer attributes (export_attributes.object_attribute)."""
+    info = None
+    is_instance = inst is not None and bool(inst.is_instance)
+    if needs.info:
+        if is_instance:
+            random = float(uint_to_float(np.uint32(int(inst.random_id) & 0xFFFFFFFF)))
+        else:
+            random = object_random(ob.name)
+        info = tuple(float(c) for c in ob.color) + (float(ob.pass_index), random)
+    attrs = {}
+    for name in needs.objects:
+        if name.startswith(_OBJECT_PREFIXES[1]) and is_instance:
+            system = inst.particle_system
+            attrs[name] = object_attribute(ob, name[len(_OBJECT_PREFIXES[1]):], inst.parent,
+                                           system.settings if system is not None else None)
+        else:
+            prefix = next(p for p in _OBJECT_PREFIXES if name.startswith(p))
+            attrs[name] = object_attribute(ob, name[len(prefix):])
+    return info, attrs
+
+
 class MeshCollector:
     """Fed with every visible MESH instance during the depsgraph walk, then `build()`."""
 
     def __init__(self, materials, warn, material_override=None, protos: dict | None = None):
         """protos: extracted meshes by evaluated mesh pointer, from an earlier export of the
-        same geometry (the viewport's), added to here."""
+        same geometry (the viewport's), added to here. materials: the MaterialTable; its
+        `reads(i)` (the fields material i's node programs read, if it has that method) decides
+        what the Mesh carries for node programs (Mesh.attributes, object_info, ...)."""
         self._materials = materials
         self._warn = warn
         self._override = material_override  # view layer material override (as Cycles)
         self._protos: dict[int, _Proto | None] = {} if protos is None else protos
         self._groups: dict[tuple, list] = {}
+        self._records: dict[tuple, list] = {}  # per group, per instance: _object_record or None
         self._slot_cache: dict[tuple, tuple] = {}
+        self._needs_cache: dict[tuple, Needs] = {}
+        self._needs = Needs()  # everything any material read so far
+        self._passes: dict[int, float] = {}  # material index -> its Pass Index
 
     @property
     def n_meshes(self) -> int:
@@ -238,28 +344,51 @@ class MeshCollector:
         if mats is None:
             slots = ob.material_slots
             if self._override is not None:
-                mats = (self._materials.index(self._override),)
+                bl = (self._override,)
             elif len(slots):
-                mats = tuple(self._materials.index(s.material) for s in slots)
+                bl = tuple(s.material for s in slots)
             else:
-                mats = tuple(self._materials.index(m) for m in ob.data.materials)
+                bl = tuple(ob.data.materials)
+            mats = tuple(self._materials.index(m) for m in bl)
+            for i, m in zip(mats, bl):
+                self._passes.setdefault(i, float(m.pass_index) if m is not None else 0.0)
             self._slot_cache[key] = mats
         return mats
 
-    def add(self, ob, matrix_world, visibility: int = RAY_ALL) -> None:
+    def _needs_of(self, mats: tuple) -> Needs:
+        needs = self._needs_cache.get(mats)
+        if needs is None:
+            reads = getattr(self._materials, "reads", None)
+            needs = Needs()
+            for i in (dict.fromkeys(mats) if reads is not None else ()):
+                needs = needs | Needs.of(reads(i))
+            self._needs_cache[mats] = needs
+            self._needs = self._needs | needs
+        return needs
+
+    def add(self, ob, matrix_world, visibility: int = RAY_ALL, inst=None) -> None:
         """ob: evaluated MESH object of the current instance; matrix_world: a copy;
-        visibility: RAY_* bits (+ HOLDOUT) of the object (Mesh.visibility)."""
+        visibility: RAY_* bits (+ HOLDOUT) of the object (Mesh.visibility); inst: the depsgraph
+        instance (its random id, instancer and particle system), read now if the object's
+        materials read Object Info or Object / Instancer attributes."""
         data_key = ob.data.as_pointer()
         proto = self._protos.get(data_key, False)
         if proto is False:
             proto = self._protos[data_key] = extract_mesh(ob)
         if proto is None:
             return
-        group = (data_key, self._slots(ob, data_key), visibility)
+        mats = self._slots(ob, data_key)
+        needs = self._needs_of(mats)
+        missing = [name for name in sorted(needs.mesh) if name not in proto.attributes]
+        if missing:
+            add_attributes(proto, ob, missing)
+        group = (data_key, mats, visibility)
         lst = self._groups.get(group)
         if lst is None:
             lst = self._groups[group] = []
+            self._records[group] = []
         lst.append(matrix_world)
+        self._records[group].append(_object_record(ob, inst, needs) if needs.per_object else None)
 
     def bounds(self) -> np.ndarray:
         """(2,3) float64 world bounding box (min, max) of every collected instance, from the
@@ -292,10 +421,13 @@ class MeshCollector:
         there instead of transformed again."""
         shift = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
         plan = []  # (proto, material lookup, visibility, matrices (k,4,4), det (k,))
+        placed_records = []  # per plan entry, per instance: _object_record or None
         n_vert = n_tri = 0
         dropped = 0
         nonfinite, bad_transform = [], []  # object names
-        for (data_key, mats, vis), matrices in self._groups.items():
+        for group, matrices in self._groups.items():
+            data_key, mats, vis = group
+            records = self._records.get(group) or [None] * len(matrices)
             proto = self._protos[data_key]
             M = np.array(matrices, np.float64).reshape(-1, 4, 4)
             det = np.linalg.det(M[:, :3, :3])
@@ -309,9 +441,11 @@ class MeshCollector:
                     bad_transform.append(proto.name)
                 dropped += len(proto.triangles) * int(np.count_nonzero(~ok & finite))  # scaled to 0
                 M, det = M[ok], det[ok]
+                records = [r for r, keep in zip(records, ok) if keep]
             if len(M) == 0 or len(proto.triangles) == 0:
                 continue
             plan.append((proto, mats, vis, M, det))
+            placed_records.append(records)
             n_vert += len(M) * len(proto.positions)
             n_tri += len(M) * len(proto.triangles)
 
@@ -407,7 +541,67 @@ class MeshCollector:
                     visibility=None if everything else visibility,
                     objects=np.array(starts + [n_tri], np.int64) if starts else None,
                     object_matrix=np.concatenate(object_matrix) if starts else None,
-                    object_texspace=np.concatenate(object_texspace) if starts else None)
+                    object_texspace=np.concatenate(object_texspace) if starts else None,
+                    **self._program_data(plan, placed_records, n_tri))
         if placed is not None:
             placed.update(mesh=mesh, groups=now)
         return mesh
+
+    def _program_data(self, plan, records, n_tri: int) -> dict:
+        """The Mesh fields node programs read (Mesh.attributes, object_attributes, object_info,
+        material_pass_index), laid out as build lays out the triangles and objects: plan entry
+        after plan entry, instance after instance; None for what no material reads."""
+        needs = self._needs
+        out = {}
+        n_objects = sum(len(M) for _, _, _, M, _ in plan)
+        if needs.mesh:
+            out["attributes"] = {name: _attribute(name, plan, n_tri, n_objects) for name in sorted(needs.mesh)}
+        flat = [r for rs in records for r in rs]
+        if needs.info:
+            info = np.zeros((n_objects, 6))
+            for b, r in enumerate(flat):
+                if r is not None and r[0] is not None:
+                    info[b] = r[0]
+            out["object_info"] = info
+        if needs.objects:
+            out["object_attributes"] = {
+                name: np.array([r[1][name] if r is not None and name in r[1] else (0.0, 0.0, 0.0, 0.0) for r in flat],
+                               np.float64).reshape(n_objects, 4) for name in sorted(needs.objects)}
+        if needs.material_index:
+            out["material_pass_index"] = np.array([self._passes.get(i, 0.0) for i in range(len(self._materials))],
+                                                  np.float64)
+        return out
+
+
+def _attribute(name: str, plan, n_tri: int, n_objects: int):
+    """(values, types) of one named attribute over the whole soup (Mesh.attributes): per corner
+    (T,3,c) where some mesh has it per corner (a per-face value then on all three), else per
+    triangle (T,c); c the most channels any mesh has; the corners of a negatively scaled
+    instance in its flipped order; zeros and type -1 where a mesh lacks it."""
+    found = [p.attributes.get(name) for p, _, _, _, _ in plan]
+    arrays = [f[1] for f in found if f is not None]
+    if not arrays:
+        return np.zeros((n_tri, 1), np.float32), np.full(n_objects, -1, np.int8)
+    corner = any(a.ndim == 3 for a in arrays)
+    c = max(a.shape[-1] for a in arrays)
+    values = np.zeros((n_tri, 3, c) if corner else (n_tri, c), np.float32)
+    types = np.full(n_objects, -1, np.int8)
+    t0 = b0 = 0
+    for (proto, _, _, M, det), f in zip(plan, found):
+        k, T = len(M), len(proto.triangles)
+        if f is not None:
+            types[b0:b0 + k] = ATTRIBUTE_TYPES.index(f[0])
+            a = f[1]
+            w = a.shape[-1]
+            block = values[t0:t0 + k * T].reshape((k, T) + values.shape[1:])
+            if corner:
+                a = np.broadcast_to(a[:, None, :], (T, 3, w)) if a.ndim == 2 else a
+                neg = det < 0
+                block[~neg, :, :, :w] = a
+                if neg.any():  # the export flips these instances' corners 1 and 2
+                    block[neg, :, :, :w] = a[:, [0, 2, 1]]
+            else:
+                block[:, :, :w] = a
+        t0 += k * T
+        b0 += k
+    return values, types

@@ -103,14 +103,17 @@ class Closure:
     reflects_only = False
 
     def __init__(self, scene: Scene, mat: np.ndarray, ns: np.ndarray, ng: np.ndarray, wo: np.ndarray,
-                 prim: np.ndarray, bary: np.ndarray, no_caustics=None, min_alpha=None, programs=None, p=None):
+                 prim: np.ndarray, bary: np.ndarray, no_caustics=None, min_alpha=None, programs=None, p=None,
+                 ray=None):
         """mat (N,) material per point; ns, ng (N,3) unit normals on wo's side; wo (N,3) toward
         the previous vertex; prim (N,) triangles and bary (N,3) barycentrics of the hits.
         no_caustics: None, or (drop_reflection, drop_refraction) (N,) bool each: points whose
         glossy reflection / refraction is left out (Cycles' caustics toggles).
         min_alpha: None, or (N,) smallest GGX alpha of glossy and glass lobes (Filter Glossy).
         programs: the scene's MaterialPrograms (engine/nodes/material.py), for materials whose
-        node graphs vary over the surface; p (N,3) the hit points they are evaluated at."""
+        node graphs vary over the surface; p (N,3) the hit points they are evaluated at; ray the
+        path's record of the points (engine/nodes/hits.py RayState: path flags, bounce counts,
+        ray differential; None: camera rays' first hits)."""
         m = scene.materials
         self.m = m
         self.ng, self.wo = ng, wo
@@ -130,7 +133,7 @@ class Closure:
         uv = textures.mesh_uv(scene.mesh.uvs, prim, bary) if np.any(textured >= 0) else None
         values = {}
         if programs and programs.has[mat].any():  # node programs: inputs per point, perhaps a normal
-            hits = SurfaceHits(scene, prim, bary, p, ns, ng, wo)
+            hits = SurfaceHits(scene, prim, bary, p, ns, ng, wo, ray=ray)
             values, normal, rows = programs.pair_values(mat, self.pair_offset, len(lobe), hits)
             if normal is not None:
                 ns = ns.copy()

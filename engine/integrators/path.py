@@ -18,14 +18,18 @@ each with its options in a record (path_options.py).
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
-from ..vec import dot, gatherer, max3, scale, take
+from ..vec import dot, gatherer, max3, normalize, scale, take
 
 from .. import camera as camera_mod
 from ..accel import Accel, offset_origin
 from ..bsdf.closure import LABEL_TRANSPARENT
 from ..bsdf.fast_path import make_closure, plain_lambert_albedo
+from ..nodes import light_path as lp
+from ..nodes.hits import camera_differentials, camera_footprint
 from ..nodes.material import MaterialPrograms
 from ..errors import Cancelled
 from ..lights.light_set import LightSet
@@ -39,6 +43,9 @@ from .path_options import CAMERA_PATHS, Clamp, ClosureOptions, Gather, LightPath
 from .path_state import PathState, rows_of
 from .surface import emitted, flat_frame_rows, flat_frames, flat_normals, shading_frame, towards
 from ..layout import BatchLayout
+
+# The bounce counts a Light Path node may read (engine/nodes/state.py).
+_COUNTS = frozenset(("bounce", "diffuse_bounce", "glossy_bounce", "transmission_bounce", "transparent_bounce"))
 
 # Random-number groups (rng.Sampler): 0 the pixel filter, then per bounce _GROUPS groups:
 # light (lanes 0-1 the point on the light, 2 its choice) and BSDF (0-1 the direction, 2 the
@@ -80,6 +87,13 @@ class PathTracer:
         self.clamp = Clamp.of(st)  # None: off
         self.light_paths = LightPaths.of(scene, lights, self.visibility)
         self.closure_options = ClosureOptions.of(st)
+        # What node programs read of the path: its flags, its counts by kind, its differentials.
+        reads = self.programs.reads
+        self.track_flag = "path_flag" in reads
+        self.track_dP = "dP" in reads
+        self.track = self.track_flag or self.track_dP or bool(reads & _COUNTS)
+        if reads & _COUNTS - {"bounce"} and not self.light_paths.counts:
+            self.light_paths = dataclasses.replace(self.light_paths, counts=True)
 
     def render(self, sampler, px: np.ndarray, py: np.ndarray, stop=None, tally=None) -> np.ndarray:
         """Radiance estimates (N,3), one path per pixel (px, py). Raises Cancelled if stop is set.
@@ -145,7 +159,33 @@ class PathTracer:
         paths.specular = np.ones(n, bool) if gather.caustic_ends is not None else None
         paths.depth = np.zeros(n, np.int64) if per_path else 0
         paths.bounces = self.light_paths.start(n, max_depth, per_path)
+        if self.track:
+            self._track(paths, gather)
         return paths
+
+    def _track(self, paths: PathState, gather: Gather) -> None:
+        """The path flags and ray differentials of the first rays, for node programs. Camera
+        paths (the render's: they keep their first emission and have no caustic ends) start
+        as Cycles' camera rays: CAMERA, the camera's differentials with dP moved to the ray's
+        start (its near clip: Cycles moves dP with it). Other traces start from a surface
+        point (the irradiance cache's and the caustic path's gather rays): their rays are
+        counted as leaving a diffuse bounce there (REFLECT | DIFFUSE, one bounce), their
+        differentials the camera's at that point, as if it were a camera ray's first hit."""
+        n, s = len(paths), self.scene
+        camera = gather.first_emission and gather.caustic_ends is None
+        dP = dD = None
+        if self.track_dP:
+            eye = np.asarray(s.camera.world_from_camera, np.float64)[:3, 3]
+            if camera:
+                dP, dD = camera_differentials(s, paths.d)
+                dP = dP + np.linalg.norm(paths.o64 - eye, axis=1) * dD
+            else:
+                dP = camera_footprint(s, paths.o64)
+                dD = camera_differentials(s, normalize(paths.o64 - eye))[1]
+        flag = None
+        if self.track_flag:
+            flag = np.full(n, lp.CAMERA if camera else lp.REFLECT | lp.DIFFUSE, np.uint32)
+        paths.bounces.track(flag, dP, dD, base=0 if camera else 1)
 
     def _top_up(self, paths: PathState, refill, gather: Gather, max_depth: int) -> PathState:
         """Path regeneration: fewer than REFILL_BELOW x the pool live, the pool is topped up
@@ -187,7 +227,8 @@ class PathTracer:
             r = np.flatnonzero(emits)
             prim, pdf_prev = hit.prim[r], paths.pdf_prev[r]
             Le = take(self.materials.emission, self.mesh.material[prim])
-            Le = emitted(self.scene, self.programs, self.flat_normal, Le, hit.take(r), take(paths.d, r))
+            ray = b.record(r, hit.t[r]) if self.track else None
+            Le = emitted(self.scene, self.programs, self.flat_normal, Le, hit.take(r), take(paths.d, r), ray)
             cos_l = np.abs(dot(take(paths.d, r), hit.take(r).ng))
             pdf_light = lights.pdf_triangle_hit(prim, take(paths.o64, r), hit.t[r], cos_l)
             w = np.where(paths.no_mis[r], 1.0, pdf_prev / np.maximum(pdf_prev + pdf_light, 1e-300))
@@ -227,7 +268,8 @@ class PathTracer:
         paths.ng = ng_f
         b, options = paths.bounces, self.closure_options
         bsdf = make_closure(self.scene, self.lambert_albedo, paths.mat, ns, ng_f, wo, paths.prim, paths.bary,
-                            options.no_caustics(b), options.blur(b), frame, self.programs, paths.p)
+                            options.no_caustics(b), options.blur(b), frame, self.programs, paths.p,
+                            b.record() if self.track else None)
         if tally and paths.depth == 0:
             tally.first_hit(paths.idx, bsdf)
         return bsdf

@@ -17,12 +17,18 @@ from __future__ import annotations
 import numpy as np
 
 from ..accel import Hit, offset_origin
-from ..bsdf.closure import LABEL_TRANSPARENT
+from ..bsdf.closure import LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT
+from ..nodes import light_path as lp
+from ..nodes.hits import RayState
 from ..scene import RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT
 from ..visibility import RayVisibility
 from .surface import towards
 
 _RAY_OF_LABEL = np.array([RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, RAY_CAMERA], np.uint8)  # per LABEL_*
+# Cycles' path flag bits a bounce of each LABEL_* sets (integrator/path_state.h path_state_next;
+# a transparent bounce adds TRANSPARENT to the flags it keeps), SINGULAR besides where delta.
+_FLAG_OF_LABEL = np.array([lp.REFLECT | lp.DIFFUSE, lp.REFLECT | lp.GLOSSY, lp.TRANSMIT | lp.GLOSSY, 0], np.uint32)
+_CLEARED = np.uint32(~((1 << 11) - 1 | lp.MIS_SKIP) & 0xFFFFFFFF)  # ~(PATH_RAY_ALL_VISIBILITY | MIS_SKIP)
 
 
 def rows_of(x, rows):
@@ -141,6 +147,8 @@ class PathState:
         out.prim, out.p, out.ng = hit.prim, hit.p, hit.ng
         out.bary = hit.b if bary else None
         out.mat = material[out.prim]
+        if out.bounces is not None and out.bounces.dP is not None:  # the footprint at the hit
+            out.bounces.dP = out.bounces.dP + hit.t * out.bounces.dD
         return out
 
     def leave(self, rows: np.ndarray, wi: np.ndarray, beta: np.ndarray, reflects: bool = False) -> "PathState":
@@ -172,10 +180,18 @@ class Bounces:
     without Filter Glossy). When none of these is kept and no surface is transparent, every
     path has made the same number of bounces: total and last are then scalars, unless the
     paths sit at different bounces (per_path: path regeneration). max_depth: the limit on
-    total, the same for all paths."""
+    total, the same for all paths.
 
-    __slots__ = ("total", "last", "stop", "counts", "ray", "min_pdf", "max_depth")
-    _ARRAYS = __slots__[:-1]
+    For node programs (track): flag (N,) uint32 Cycles' PATH_RAY_* bits of the path's ray
+    (light_path.py; None when no program reads them); dP (N,) the ray footprint's radius at
+    its origin, once arrived at the hit (sd->dP), and dD (N,) its spread per unit length
+    (Cycles' compact differentials: at a hit dP + t dD, differential_transfer_compact; a
+    bounce starts its ray with the hit's dP and keeps dD, shade_surface.h; None when no
+    program reads dP); base: bounces the paths made before this trace (1 for gather rays
+    leaving a surface), added to the counts a program reads."""
+
+    __slots__ = ("total", "last", "stop", "counts", "ray", "min_pdf", "flag", "dP", "dD", "max_depth", "base")
+    _ARRAYS = __slots__[:-2]
 
     @staticmethod
     def start(n: int, max_depth: int, stop=False, counts=False, ray=False, min_pdf=False,
@@ -189,17 +205,23 @@ class Bounces:
         b.counts = np.zeros((n, 4), np.int32) if counts else None
         b.ray = np.full(n, RAY_CAMERA, np.uint8) if ray else None
         b.min_pdf = np.full(n, np.inf) if min_pdf else None
-        b.max_depth = max_depth
+        b.flag = b.dP = b.dD = None
+        b.max_depth, b.base = max_depth, 0
         return b
+
+    def track(self, flag=None, dP=None, dD=None, base: int = 0) -> "Bounces":
+        """Keep the path flags (flag (N,) uint32 of the first rays) and the ray differentials
+        (dP, dD (N,) of the first rays) for node programs; base: see the class. In place."""
+        self.flag, self.dP, self.dD, self.base = flag, dP, dD, base
+        return self
 
     def take(self, rows) -> "Bounces":
         b = Bounces.__new__(Bounces)
-        b.max_depth = self.max_depth
+        b.max_depth, b.base = self.max_depth, self.base
         b.total, b.last = (self.total, self.last) if np.ndim(self.total) == 0 else (self.total[rows], self.last[rows])
-        b.stop = None if self.stop is None else self.stop[rows]
-        b.counts = None if self.counts is None else self.counts[rows]
-        b.ray = None if self.ray is None else self.ray[rows]
-        b.min_pdf = None if self.min_pdf is None else self.min_pdf[rows]
+        for name in self._ARRAYS[2:]:
+            v = getattr(self, name)
+            setattr(b, name, None if v is None else v[rows])
         return b
 
     def join(self, other: "Bounces") -> "Bounces":
@@ -208,12 +230,31 @@ class Bounces:
         for name in self._ARRAYS:
             v = getattr(self, name)
             setattr(b, name, v if v is None else np.concatenate([v, getattr(other, name)]))
-        b.max_depth = self.max_depth
+        b.max_depth, b.base = self.max_depth, self.base
         return b
+
+    def record(self, rows=None, t=None) -> RayState:
+        """What node programs read of the paths (engine/nodes/hits.py RayState) at their
+        vertices; with rows (K,) and t (K,): at the hits of those paths' rays, t along them
+        (before arrive: where the emission the rays find is evaluated)."""
+        def at(v):
+            return v if rows is None or v is None or np.ndim(v) == 0 else v[rows]
+
+        counts = at(self.counts)
+        by_label = [self.base if label == LABEL_DIFFUSE else 0 for label in range(4)] if counts is None else \
+            [counts[:, label] + (self.base if label == LABEL_DIFFUSE else 0) for label in range(4)]
+        dP = at(self.dP)
+        if dP is not None and t is not None:
+            dP = dP + t * at(self.dD)
+        return RayState(lp.CAMERA if self.flag is None else at(self.flag), at(self.total) + self.base,
+                        by_label[LABEL_DIFFUSE], by_label[LABEL_GLOSSY], by_label[LABEL_TRANSMIT],
+                        by_label[LABEL_TRANSPARENT], dP)
 
     def count(self, bs, rows, limits: np.ndarray) -> "Bounces":
         """The counts after the bounce sampled in bs (BSDFSample) at rows (N,) (this state's
         paths); limits (4,) per LABEL_*. Updates in place (the arrays are this state's own)."""
+        if self.flag is not None:
+            self._flag(bs, rows)
         if self.counts is None and self.ray is None and self.min_pdf is None:  # every bounce counts alike
             self.total = self.total + 1  # scalars or arrays alike
             self.last = self.last | (self.total >= self.max_depth)
@@ -235,3 +276,13 @@ class Bounces:
         if self.min_pdf is not None:
             self.min_pdf = np.where(bs.delta[rows], self.min_pdf, np.minimum(self.min_pdf, bs.pdf[rows]))
         return self
+
+    def _flag(self, bs, rows) -> None:
+        """Cycles' path_state_next on the flags: a transparent bounce adds TRANSPARENT to the
+        flags it keeps; any other clears the ray kind (and MIS_SKIP) and sets REFLECT or TRANSMIT
+        and DIFFUSE, GLOSSY or GLOSSY | SINGULAR (a delta lobe) by the bounce's label."""
+        label = bs.label[rows]
+        new = _FLAG_OF_LABEL[label] | np.where(bs.delta[rows] & (label != LABEL_DIFFUSE), np.uint32(lp.SINGULAR),
+                                               np.uint32(0))
+        self.flag = np.where(label == LABEL_TRANSPARENT, self.flag | np.uint32(lp.TRANSPARENT),
+                             (self.flag & _CLEARED) | new).astype(np.uint32)

@@ -67,10 +67,11 @@ def flat_frame_rows(tables, prim: np.ndarray, ng: np.ndarray, wo: np.ndarray):
     return tuple(take(table, row) for table in tables)
 
 
-def emitted(scene, programs, flat_normal, Le: np.ndarray, hit, d: np.ndarray) -> np.ndarray:
+def emitted(scene, programs, flat_normal, Le: np.ndarray, hit, d: np.ndarray, ray=None) -> np.ndarray:
     """Le (K,3) of K emissive hits (an accel Hit) of rays along d (K,3), with the node programs'
     radiance where a material's emission varies over the surface (a textured emitter),
-    evaluated at the hit points; Le itself where none does."""
+    evaluated at the hit points; Le itself where none does. ray: the paths' record at the hits
+    (engine/nodes/hits.py RayState), or None (camera rays' first hits)."""
     mat = scene.mesh.material[hit.prim]
     rows = np.flatnonzero(programs.varying_emission[mat])
     if len(rows) == 0:
@@ -79,5 +80,6 @@ def emitted(scene, programs, flat_normal, Le: np.ndarray, hit, d: np.ndarray) ->
     wo = -d[rows]
     ng, ns = shading_frame(scene.mesh, flat_normal, h.prim, h.b, h.ng, wo)
     Le = Le.copy()
-    Le[rows] = programs.emission(mat[rows], SurfaceHits(scene, h.prim, h.b, h.p, ns, ng, wo, h.t))
+    ray = None if ray is None else ray.take(rows)
+    Le[rows] = programs.emission(mat[rows], SurfaceHits(scene, h.prim, h.b, h.p, ns, ng, wo, h.t, ray))
     return Le

@@ -13,6 +13,11 @@ linked (Normal Map, Bump).
 The closures are found by running the program once on a probe point (every state field at a
 plausible value): Mix and Add Shader keep both sides' closures whatever their factors, so the
 list of closures is the same at every point and only their values vary.
+
+A graph with an output "normal" (bump.bump_from_displacement: the Material Output's
+displacement as Cycles' Bump Only normal) has a second program for it, run first: the surface
+program then reads the state with N set to that normal (Cycles' set_normal before the surface
+closures), and BSDFs whose Normal is not linked shade with it.
 """
 from __future__ import annotations
 
@@ -24,7 +29,7 @@ from ..scene import (FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECT
                      LOBE_PHONG, LOBE_TRANSPARENT, part_digest)
 from .closures import closures
 from .graph import Graph
-from .hits import SurfaceHits
+from .hits import EMISSION_RAY, SurfaceHits
 from .program import Program, compile
 from .state import ShadingState
 
@@ -99,15 +104,25 @@ class MaterialProgram:
     normal: bool
     notes: tuple = field(default_factory=tuple)
     emission_mean: np.ndarray = field(default_factory=lambda: np.zeros(3))  # over PROBES points
+    displacement: Program | None = None  # the bump normal of the Material Output's displacement
 
     @property
     def constant(self) -> bool:
         return self.emission is not None and not self.normal and not any(self.varying)
 
+    @property
+    def reads(self) -> frozenset:
+        """The state fields the programs read (engine/nodes/state.py)."""
+        return self.program.reads | (self.displacement.reads if self.displacement is not None else frozenset())
+
     def evaluate(self, state: ShadingState):
         """At the points of `state`: ([{input: (N,...) value} per lobe, with "weight" (N,3)],
         emitted radiance (N,3), shading normal (N,3) or None)."""
         n = state.n
+        bumped = None
+        if self.displacement is not None:  # set_normal: N is the displacement's bump normal from here on
+            bumped = np.broadcast_to(self.displacement.run(state)["normal"], (n, 3))
+            state = ShadingState(n, source=_Through(state), N=bumped)
         made = closures(self.program.run(state)["surface"])
         bsdfs = [c for c in made if c.kind in LOBE_OF]
         lobes = []
@@ -121,13 +136,34 @@ class MaterialProgram:
         for c in made:
             if c.kind == "emission":
                 emission = emission + c.weight
-        normal = next((np.broadcast_to(c.params["normal"], (n, 3)) for c in bsdfs if "normal" in c.params), None)
+        normal = next((np.broadcast_to(c.params["normal"], (n, 3)) for c in bsdfs if "normal" in c.params), bumped)
         return lobes, emission, normal
 
 
+class _Through:
+    """A state's fields as the source of another state that overrides some (N): what the first
+    has computed is not computed again. The Texture Coordinate normal follows the new state's N."""
+
+    def __init__(self, state: ShadingState):
+        self._state = state
+
+    def __getattr__(self, name: str):
+        if name.startswith("_") or name in ("N", "texcoord_normal"):
+            raise AttributeError(name)
+        return lambda: getattr(self._state, name)
+
+    def attribute(self, name: str):
+        return self._state.attribute(name)
+
+
 def compile_material(graph: Graph) -> MaterialProgram:
-    """The lobes, emission and program of a material's graph (its output "surface")."""
+    """The lobes, emission and program of a material's graph (its output "surface", and
+    "normal" where it has one: bump_from_displacement's)."""
     program = compile(graph, {"surface": "shader"})
+    socket = graph.output("normal")
+    displacement = compile(graph, {"normal": "vector"}) if socket is not None and socket.link is not None else None
+    if displacement is not None and not displacement.ops:  # a constant height: the normal unchanged
+        displacement = None
     made = closures(program.run(probe_state() if program.ops else None)["surface"])
     bsdfs = [c for c in made if c.kind in LOBE_OF]
     tags = {c.tag: k for k, c in enumerate(bsdfs)}
@@ -148,8 +184,11 @@ def compile_material(graph: Graph) -> MaterialProgram:
         varying.append(tuple(names))
     emitters = [c.weight for c in made if c.kind == "emission"]
     emission = None if any(_varies(w, True) for w in emitters) else sum((np.asarray(w) for w in emitters), np.zeros(3))
-    normal = any("normal" in c.params for c in bsdfs)
-    mp = MaterialProgram(program, tuple(bsdfs), lobes, varying, emission, normal, program.warnings)
+    normal = any("normal" in c.params for c in bsdfs) or displacement is not None
+    warnings = program.warnings + tuple(w for w in (displacement.warnings if displacement is not None else ())
+                                        if w not in program.warnings)
+    mp = MaterialProgram(program, tuple(bsdfs), lobes, varying, emission, normal, warnings,
+                         displacement=displacement)
     if emission is not None:
         mp.emission_mean = emission
     else:
@@ -187,20 +226,33 @@ class MaterialPrograms:
         # Materials whose emitted radiance varies over the surface (evaluated where it is found).
         self.varying_emission = np.zeros(len(materials.kind), bool)
         self.varying_emission[[m for m, mp in self.compiled.items() if mp.emission is None]] = True
+        # Every state field some program reads: what the integrators track for them (path flags,
+        # bounce counts, ray differentials).
+        self.reads = frozenset().union(*(mp.reads for mp in self.compiled.values()))
+        self._names = {m: tuple(sorted(r[len("attribute:"):] for r in mp.reads if r.startswith("attribute:")))
+                       for m, mp in self.compiled.items()}
 
     def __bool__(self) -> bool:
         return bool(self.compiled)
+
+    def _batches(self, mat: np.ndarray, hits, which):
+        """(material, rows, state) per batch of the points whose materials `which` (M,) bool
+        marks: a material's points at once, split where their objects' meshes differ in which
+        named attributes the program reads they have (ShadingState.attribute is per batch)."""
+        for m in np.unique(mat[which[mat]]):
+            m = int(m)
+            for rows in hits.split(np.flatnonzero(mat == m), self._names[m]):
+                yield self.compiled[m], rows, hits.take(rows).state()
 
     def pair_values(self, mat: np.ndarray, pair_offset: np.ndarray, n_pairs: int, hits):
         """For the N points of a closure (mat (N,) their materials, pair_offset (N+1,) where each
         point's lobes start in the pair table): ({input: (values (P,...), has (P,) bool)} of
         the pairs whose material's program computes them, normal (N,3) with rows (K,) of the
-        points it replaces, or (None, None)). hits: a SurfaceHits of the N points."""
+        points it replaces, or (None, None)). hits: a SurfaceHits of the N points (with the
+        path's record of them, SurfaceHits' ray)."""
         values, normal, normal_rows = {}, [], []
-        for m in np.unique(mat[self.has[mat]]):
-            mp = self.compiled[int(m)]
-            rows = np.flatnonzero(mat == m)
-            lobes, _, n = mp.evaluate(hits.take(rows).state())
+        for mp, rows, state in self._batches(mat, hits, self.has):
+            lobes, _, n = mp.evaluate(state)
             for k, lobe in enumerate(lobes):
                 pairs = pair_offset[rows] + k
                 for name, v in lobe.items():
@@ -218,13 +270,11 @@ class MaterialPrograms:
 
     def emission(self, mat: np.ndarray, hits) -> np.ndarray | None:
         """(N,3) emitted radiance of N hits where some material's emission varies, else None."""
-        varying = [m for m in np.unique(mat[self.has[mat]]) if self.compiled[int(m)].emission is None]
-        if not varying:
+        if not self.varying_emission[mat].any():
             return None
         out = np.zeros((len(mat), 3))
-        for m in varying:
-            rows = np.flatnonzero(mat == m)
-            out[rows] = self.compiled[int(m)].evaluate(hits.take(rows).state())[1]
+        for mp, rows, state in self._batches(mat, hits, self.varying_emission):
+            out[rows] = mp.evaluate(state)[1]
         return out
 
 
@@ -252,7 +302,12 @@ class SurfaceEmission:
         self.scene, self.programs = scene, programs
         self.varying = programs.varying_emission  # (M,) bool per material
 
-    def __call__(self, prim, bary, p, n, wo) -> np.ndarray:
+    def __call__(self, prim, bary, p, n, wo, ray=None) -> np.ndarray:
         """(K,3) at points p (K,3) (barycentrics bary) of triangles prim (K,), the surface facing
-        n (K,3), seen from wo (K,3)."""
-        return self.programs.emission(self.scene.mesh.material[prim], SurfaceHits(self.scene, prim, bary, p, n, n, wo))
+        n (K,3), seen from wo (K,3). ray: the record of the paths whose light samples these are
+        (hits.RayState: their bounce counts), else none; either way the shader sees Cycles'
+        emission flag and no ray differential, as Cycles evaluates a light's shader for a
+        light sample (light_sample_shader_eval, shader_setup_from_sample)."""
+        ray = EMISSION_RAY if ray is None else ray.for_emission()
+        hits = SurfaceHits(self.scene, prim, bary, p, n, n, wo, ray=ray)
+        return self.programs.emission(self.scene.mesh.material[prim], hits)
