@@ -33,6 +33,8 @@ import numpy as np
 
 from .. import sampling
 from ..scene import LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, RAY_ALL, RAY_CAMERA, Lights, Materials, Mesh, World
+from ..nodes import light_path as lp
+from ..nodes.hits import EMISSION_RAY, RayState
 from ..vec import dot, max3, scale, take
 from . import light_shader, light_tree, shapes, world as world_light
 
@@ -121,8 +123,8 @@ class LightSet:
         # table (sampled, last index); `background` the program escaped rays evaluate.
         self.world, self.background, self.env = world_light.world_emitters(world, strategy == "mis", camera)
         bg = self.background
-        self.world_reads_path = bg is not None and bg.reads_path  # escaped rays need their kinds
-        self.world_reads_bounces = bg is not None and bg.reads_bounces  # ... and bounce counts
+        # What the world's Light Path reads of the paths: integrators give their RayStates then.
+        self.world_reads = bg.reads_path if bg is not None else frozenset()
         self.world_reads_camera = bg is not None and bg.reads_camera  # the table follows the camera
         self.world_visible = bool(world.visible)
         # Environment power as pbrt-v4's infinite lights: pi R^2 x integral of L over the sphere.
@@ -255,10 +257,10 @@ class LightSet:
         return index, pmf
 
     # ---- next-event estimation ------------------------------------------------------------
-    def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray, in_unit=False, bounces=None) -> LightSample:
+    def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray, in_unit=False, ray=None) -> LightSample:
         """One light sample per shading point p (N,3) float64; u_select (N,), u (N,2) (in_unit:
-        known to lie in [0, 1), a Sampler's numbers: not clamped again); bounces: a Bounces of
-        the N paths, for a world program reading their counts (world_reads_bounces), or None."""
+        known to lie in [0, 1), a Sampler's numbers: not clamped again); ray: the N paths'
+        RayState, for a world program reading them (world_reads), or None."""
         n = len(p)
         if self.tree is None and self.n_analytic == 0 and self.env is None:
             return self._sample_triangles(p, u_select, u, in_unit)
@@ -286,7 +288,7 @@ class LightSet:
         is_env = np.False_ if only_triangles else index == self.env_index
         if is_env.any():
             rows, r = rows_of(is_env)
-            e = self.env.sample(u[r]) if bounces is None else self.env.sample(u[r], bounces=bounces.take(rows))
+            e = self.env.sample(u[r]) if ray is None else self.env.sample(u[r], ray.take(rows).for_emission())
             put(rows, shapes.ShapeSample(e.wi, e.Le, e.pdf, p[r] + e.wi * 1e30, np.zeros(len(rows), bool)))
         target_prim = np.full(n, -1, np.int64)
         if is_tri.any():
@@ -379,13 +381,13 @@ class LightSet:
         return total
 
     def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray,
-                kind: np.ndarray = None, bounces=None) -> np.ndarray:
+                kind: np.ndarray = None, ray=None) -> np.ndarray:
         """Radiance (N,3) for rays leaving the scene along d: suns and the world's light
         (MIS-weighted like `emission_along`; a world program without a table and the constant
         world weigh 1: they are never light-sampled). Camera rays see the world only if it is
         visible; with kind (N,), rays see only what is visible to their kind. A world program
-        reads the rays' kinds (kind, else camera) and bounces (a Bounces of the N rays, or None:
-        none counted) where Light Path asks (world_reads_path, world_reads_bounces)."""
+        whose Light Path reads the paths (world_reads) reads ray, the N rays' RayState; without
+        one, a camera ray's first hit where camera, else a ray leaving a diffuse bounce."""
         total = np.zeros((len(d), 3))
         for i in self.suns.tolist():
             self._add_weighted(total, i, shapes.sun_hit(self.lights, i, d), pdf_bsdf, use_mis, camera, kind, None, d)
@@ -396,10 +398,12 @@ class LightSet:
             rows = np.flatnonzero(seen)
             Le = np.zeros((len(d), 3))
             if len(rows):
-                flags = world_light.path_flags(None if kind is None else kind[rows], camera[rows], len(rows)) \
-                    if self.world_reads_path else world_light.PATH_EMISSION
-                b = bounces.take(rows) if bounces is not None and self.world_reads_bounces else None
-                Le[rows] = self.background.radiance(take(d, rows), flags, b)
+                state = EMISSION_RAY
+                if self.world_reads:
+                    state = ray.take(rows) if ray is not None else \
+                        RayState(np.where(camera[rows], lp.CAMERA, lp.REFLECT | lp.DIFFUSE).astype(np.uint32), 0)
+                    state = state.escaped()
+                Le[rows] = self.background.radiance(take(d, rows), state)
         elif self.env is not None:
             Le = self.env.eval(d)
         if self.env is not None or self.background is not None:
