@@ -225,9 +225,10 @@ class PathTracer:
             prim, pdf_prev = hit.prim[r], paths.pdf_prev[r]
             Le = take(self.materials.emission, self.mesh.material[prim])
             ray = b.record(r, hit.t[r]) if self.track else None
-            Le = emitted(self.scene, self.programs, self.flat_normal, Le, hit.take(r), take(paths.d, r), ray)
-            cos_l = np.abs(dot(take(paths.d, r), hit.take(r).ng))
-            pdf_light = lights.pdf_triangle_hit(prim, take(paths.o64, r), hit.t[r], cos_l)
+            at = hit.take(r)
+            Le = emitted(self.scene, self.programs, self.flat_normal, Le, at, take(paths.d, r), ray)
+            cos_l = np.abs(dot(take(paths.d, r), at.ng))
+            pdf_light = lights.pdf_triangle_hit(prim, take(paths.o64, r), hit.t[r], cos_l, at.b)
             w = np.where(paths.no_mis[r], 1.0, pdf_prev / np.maximum(pdf_prev + pdf_light, 1e-300))
             self._add(L, idx[r], self._clamp(take(paths.beta, r) * scale(Le, w), b.total <= 1, r), tally, depth)
 

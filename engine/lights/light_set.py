@@ -37,6 +37,7 @@ from ..nodes import light_path as lp
 from ..nodes.hits import EMISSION_RAY, RayState
 from ..vec import dot, max3, scale, take
 from . import light_shader, light_tree, shapes, world as world_light
+from .emission_maps import EmissionMaps
 
 # From this many finite lights on, a light tree chooses them (below: power alone, as the seed
 # says): below it the tree's cost per shading point is not reliably repaid at equal time
@@ -88,10 +89,10 @@ class LightSet:
         surface_emission: for materials whose emission varies over the surface (textured
         emitters), an object with `varying` (M,) bool per material and a call (prim, bary, p,
         n, wo) -> (K,3) radiance at points of triangles (engine/nodes/material.py
-        SurfaceEmission), or None. Such triangles are chosen by their mean radiance over a few
-        points and sampled uniformly, and a sample's radiance is the material's at its point. camera: the
-        scene's Camera, for a world program's Camera and Window coordinates (None: at the
-        origin, looking down -z)."""
+        SurfaceEmission), or None. Such triangles are chosen by their mean radiance and sampled
+        by their emission maps (emission_maps.py); a sample's radiance is the material's at its
+        point. camera: the scene's Camera, for a world program's Camera and Window coordinates
+        (None: at the origin, looking down -z)."""
         self.lights = lights
         self.n_analytic = len(lights)
         self.scene_radius = scene_radius
@@ -102,12 +103,15 @@ class LightSet:
         emissive = np.any(tri_Le != 0, axis=-1) & (accel.area > 0) if mesh.n_triangles else np.zeros(0, bool)
         self.tri_prim = np.flatnonzero(emissive)
         self.tri_Le = tri_Le[self.tri_prim]
-        self.surface_emission, self.tri_varying = surface_emission, None
+        self.surface_emission, self.tri_varying, self.maps = surface_emission, None, None
         if surface_emission is not None and len(self.tri_prim):
             varying = surface_emission.varying[mesh.material[self.tri_prim]]
             if varying.any():
                 self.tri_varying = varying
-                self.tri_Le[varying] = self._mean_emission(accel, self.tri_prim[varying])
+                self.map_row = np.cumsum(varying) - 1  # a varying triangle's row in the maps
+                self.maps = EmissionMaps(int(varying.sum()),
+                                         lambda i, b: self._emission_at(accel, self.tri_prim[varying][i], b))
+                self.tri_Le[varying] = self.maps.mean
         self.tri_area = accel.area[self.tri_prim]
         self.tri_v0 = accel.v0[self.tri_prim]
         self.tri_e1 = accel.e1[self.tri_prim]
@@ -330,14 +334,16 @@ class LightSet:
         """A uniform point on each of the emissive triangles t (N,) seen from p (N,3) (one gather
         of each triangle's row); in_unit as `sample`."""
         b = sampling.sample_uniform_triangle(u, in_unit)
+        r = np.flatnonzero(self.tri_varying[t]) if self.tri_varying is not None else ()
+        if len(r):  # textured emitters: points where they shine
+            b[r], density = self.maps.sample(self.map_row[t[r]], u[r])
         row = take(self.tri_rows, t)
         y = row[:, 0:3] + scale(row[:, 3:6], b[:, 1]) + scale(row[:, 6:9], b[:, 2])
         wi, pdf = shapes.area_to_solid_angle(p, y, row[:, 9:12], row[:, 12], two_sided=True)
         Le = take(self.tri_Le, t)
-        if self.tri_varying is not None:
-            r = np.flatnonzero(self.tri_varying[t])
-            if len(r):
-                Le[r] = self.triangle_emission(t[r], b[r], y[r], -wi[r])
+        if len(r):
+            pdf[r] *= density
+            Le[r] = self.triangle_emission(t[r], b[r], y[r], -wi[r])
         return shapes.ShapeSample(wi, Le, pdf, y, np.ones(len(t), bool))
 
     def triangle_emission(self, t: np.ndarray, b: np.ndarray, y: np.ndarray, wo: np.ndarray) -> np.ndarray:
@@ -347,23 +353,25 @@ class LightSet:
         n = ng * np.where(dot(ng, wo) < 0, -1.0, 1.0)[:, None]  # two-sided: the side wo leaves
         return self.surface_emission(self.tri_prim[t], b, y, n, wo)
 
-    def _mean_emission(self, accel, prim: np.ndarray) -> np.ndarray:
-        """(K,3) mean radiance of triangles prim (K,) over four stratified points each."""
-        u = (np.array([[0.25, 0.25], [0.75, 0.25], [0.25, 0.75], [0.75, 0.75]]))
-        b = np.tile(sampling.sample_uniform_triangle(u), (len(prim), 1))
-        tri = np.repeat(prim, len(u))
-        y = accel.v0[tri] + scale(accel.e1[tri], b[:, 1]) + scale(accel.e2[tri], b[:, 2])
-        ng = accel.ng[tri]
-        Le = self.surface_emission(tri, b, y, ng, ng)
-        return Le.reshape(len(prim), len(u), 3).mean(axis=1)
+    def _emission_at(self, accel, prim: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """(K,3) radiance of triangles prim (K,) at barycentrics b (K,3), along their normal."""
+        y = accel.v0[prim] + scale(accel.e1[prim], b[:, 1]) + scale(accel.e2[prim], b[:, 2])
+        ng = accel.ng[prim]
+        return self.surface_emission(prim, b, y, ng, ng)
 
     # ---- emission found by rays (BSDF sampling or camera rays) -----------------------------
-    def pdf_triangle_hit(self, prim: np.ndarray, p_prev: np.ndarray, t: np.ndarray, cos_light: np.ndarray):
+    def pdf_triangle_hit(self, prim: np.ndarray, p_prev: np.ndarray, t: np.ndarray, cos_light: np.ndarray,
+                         b: np.ndarray):
         """Selection pmf x solid-angle pdf with which NEE at p_prev would have sampled the hit
-        point on emissive triangle `prim` at distance t with |cos| at the light."""
+        point (barycentrics b (N,3)) on emissive triangle `prim` at distance t with |cos| at
+        the light."""
         index = self.light_of_prim[prim]
-        area = self.tri_area[index - self.n_analytic]
+        tri = index - self.n_analytic
+        area = self.tri_area[tri]
         pdf = self.pmf(index, p_prev) * np.divide(t * t, area * cos_light, out=np.zeros_like(t), where=(area * cos_light) > 0)
+        if self.maps is not None:
+            r = np.flatnonzero(self.tri_varying[tri])
+            pdf[r] *= self.maps.pdf_in_triangle(self.map_row[tri[r]], b[r])
         return np.where(np.isfinite(pdf), pdf, 0.0)
 
     def emission_along(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, pdf_bsdf: np.ndarray,
