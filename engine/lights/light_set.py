@@ -353,6 +353,16 @@ class LightSet:
         n = ng * np.where(dot(ng, wo) < 0, -1.0, 1.0)[:, None]  # two-sided: the side wo leaves
         return self.surface_emission(self.tri_prim[t], b, y, n, wo)
 
+    def barycentrics(self, t: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """(K,3) barycentrics of points y (K,3) in the planes of emissive triangles t (K,)."""
+        e1, e2, d = take(self.tri_e1, t), take(self.tri_e2, t), y - take(self.tri_v0, t)
+        g11, g12, g22 = dot(e1, e1), dot(e1, e2), dot(e2, e2)
+        r1, r2 = dot(d, e1), dot(d, e2)
+        det = g11 * g22 - g12 * g12
+        b1 = np.divide(g22 * r1 - g12 * r2, det, out=np.zeros_like(det), where=det > 0)
+        b2 = np.divide(g11 * r2 - g12 * r1, det, out=np.zeros_like(det), where=det > 0)
+        return np.column_stack([1.0 - b1 - b2, b1, b2])
+
     def _emission_at(self, accel, prim: np.ndarray, b: np.ndarray) -> np.ndarray:
         """(K,3) radiance of triangles prim (K,) at barycentrics b (K,3), along their normal."""
         y = accel.v0[prim] + scale(accel.e1[prim], b[:, 1]) + scale(accel.e2[prim], b[:, 2])

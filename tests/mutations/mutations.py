@@ -608,4 +608,10 @@ MUTATIONS = [
          old="        return b, pmf * s",
          new="        return b, 1.03 * pmf * s",
          tests=["tests/test_emission_maps.py"]),
+    dict(name="emission_map_photon_flux_unweighted",
+         note="photons drawn by the emission map carry the uniform-origin flux",
+         file="engine/lights/emission.py",
+         old="2.0 * np.pi * a / density, 0.0))",
+         new="2.0 * np.pi * a, 0.0))",
+         tests=["tests/test_emission_maps.py"]),
 ]
