@@ -614,4 +614,10 @@ MUTATIONS = [
          old="2.0 * np.pi * a / density, 0.0))",
          new="2.0 * np.pi * a, 0.0))",
          tests=["tests/test_emission_maps.py"]),
+    dict(name="emission_probed_for_camera_rays_only",
+         note="a varying emission's mean probed for camera rays alone: a lamp black to the camera never lights",
+         file="engine/nodes/material.py",
+         old='flags = _PROBE_FLAGS if "path_flag" in program.reads else _PROBE_FLAGS[:1]',
+         new='flags = _PROBE_FLAGS[:1]',
+         tests=["tests/test_export_material.py"]),
 ]
