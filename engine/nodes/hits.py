@@ -54,20 +54,23 @@ class RayState:
     path_state.h): flag, Cycles' PATH_RAY_* bits of the ray that reached them (light_path.py);
     the bounce counts (bounce, diffuse_bounce, glossy_bounce, transmission_bounce,
     transparent_bounce); dP the ray footprint's radius at the points (sd->dP), or None: the
-    camera's at a first hit. Each an (N,) array or one value for all."""
+    camera's at a first hit. Each an (N,) array or one value for all. rays: the ray queries
+    the path can make from the points (engine/nodes/rays.py ShaderRays: the scene and the
+    path's random numbers), or None."""
 
-    __slots__ = ("flag",) + _COUNTS + ("dP",)
+    __slots__ = ("flag",) + _COUNTS + ("dP", "rays")
 
     def __init__(self, flag, bounce=0, diffuse_bounce=0, glossy_bounce=0, transmission_bounce=0,
-                 transparent_bounce=0, dP=None):
-        self.flag, self.dP = flag, dP
+                 transparent_bounce=0, dP=None, rays=None):
+        self.flag, self.dP, self.rays = flag, dP, rays
         self.bounce, self.diffuse_bounce, self.glossy_bounce = bounce, diffuse_bounce, glossy_bounce
         self.transmission_bounce, self.transparent_bounce = transmission_bounce, transparent_bounce
 
     def take(self, rows) -> "RayState":
         """The record of points `rows`."""
         pick = lambda v: v if v is None or np.ndim(v) == 0 else v[rows]  # noqa: E731
-        return RayState(*(pick(getattr(self, name)) for name in self.__slots__))
+        rays = None if self.rays is None else self.rays.take(rows)
+        return RayState(*(pick(getattr(self, name)) for name in self.__slots__[:-1]), rays=rays)
 
     def for_emission(self) -> "RayState":
         """What a light's shader sees for a light sample of these paths: Cycles' emission flag,
@@ -407,6 +410,9 @@ class SurfaceHits:
 
     def transparent_bounce(self):
         return self._count("transparent_bounce")
+
+    def ray_queries(self):
+        return self.ray.rays
 
     def portal_bounce(self):  # Ember has no Ray Portal BSDF
         return np.zeros(len(self.prim), np.int64)
