@@ -21,7 +21,6 @@ START, END = "<!-- node-table:start -->", "<!-- node-table:end -->"
 
 # Node kinds Ember does not build, and why.
 NOT_BUILT = {
-    "ShaderNodeBevel": "needs ray queries from inside a shader",
     "ShaderNodeOutputAOV": "AOV passes are not written yet",
     "ShaderNodeScript": "OSL scripts: no OSL compiler in Ember",
     "ShaderNodeShaderToRGB": "EEVEE only; Cycles does not support it either",
@@ -34,6 +33,7 @@ NOT_BUILT = {
 # Built nodes whose Cycles behaviour needs saying.
 NOTES = {
     "ShaderNodeAmbientOcclusion": "photons and the photon map's final gather read 1 (no occlusion)",
+    "ShaderNodeBevel": "photons and the photon map's final gather read the unbevelled normal",
     "ShaderNodeParticleInfo": "Ember reads no particles: Cycles' values for an object that is no particle instance",
     "ShaderNodeSqueeze": "Cycles evaluates nothing for it: a socket it feeds keeps its own value",
 }

@@ -92,9 +92,11 @@ class PathTracer:
         reads = self.programs.reads
         self.track_flag = "path_flag" in reads
         self.track_dP = "dP" in reads
-        self.track = self.track_flag or self.track_dP or bool(reads & _COUNTS)
+        self.track = self.track_flag or self.track_dP or bool(reads & _COUNTS) or "min_ray_pdf" in reads
         if reads & _COUNTS - {"bounce"} and not self.light_paths.counts:
             self.light_paths = dataclasses.replace(self.light_paths, counts=True)
+        if "min_ray_pdf" in reads and not self.light_paths.min_pdf:
+            self.light_paths = dataclasses.replace(self.light_paths, min_pdf=True)
         # Programs that trace rays (Ambient Occlusion, Bevel): what they trace against.
         self.shader_rays = None
         if "ray_queries" in reads:

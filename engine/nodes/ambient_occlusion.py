@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sampling import frame_from_z, sample_cosine_hemisphere, to_world
+from ..sampling import to_world
 from .base import column, node, scalar, triple
-from .rays import AO
+from .rays import AO, make_orthonormals, sample_uniform_disk
 from .vector_math import safe_normalize
 
 
@@ -30,11 +30,13 @@ def occlusion(state, normal, distance, samples: int, inside: bool, only_local: b
     normal = np.broadcast_to(safe_normalize(triple(normal())), (n, 3))
     if inside:
         normal = -normal
-    t, b = frame_from_z(normal)
+    t, b = make_orthonormals(normal)
     p, ng = np.asarray(state.P, np.float64), np.asarray(state.Ng, np.float64)
     free = np.zeros(n)
     for k in range(samples):
-        d = to_world(sample_cosine_hemisphere(queries.uniform(AO, k), in_unit=True), t, b, normal)
+        disk = sample_uniform_disk(queries.uniform(AO, k, samples))
+        up = np.sqrt(np.maximum(1.0 - disk[:, 0] ** 2 - disk[:, 1] ** 2, 0.0))
+        d = to_world(np.stack([disk[:, 0], disk[:, 1], up], axis=1), t, b, normal)
         free += ~queries.occluded(p, ng, d, distance, local=only_local)
     return np.where(distance > 0.0, free / samples, 1.0)
 

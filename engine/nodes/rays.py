@@ -6,14 +6,16 @@ one shadow rays see, and the full one, for queries against the point's own objec
 path's random numbers at each point: numbers of the sampler (engine/rng.py) in groups of their
 own, a pure function of (seed, pixel, sample, bounce, stream, sample of the node), so an image
 never depends on batches or workers. A node asks
-  uniform(stream, k)             (N,2) uniforms for its k-th ray of a stream (AO, BEVEL)
+  uniform(stream, k, count)      (N,2) uniforms for its k-th ray of `count` in a stream (AO,
+                                 BEVEL, BEVEL_HITS)
   occluded(o, ng, d, tmax, local)
                                  (N,) bool: is the segment o + t d, t in (0, tmax], blocked
                                  (local: only by the point's own object, Cycles'
                                  scene_intersect_local; else by what casts shadows)
-  local_hits(o, d, tmax, most)   every hit of the points' own objects along o + t d, t in
-                                 (0, tmax]: (row, prim, t, barycentrics) of up to `most` per ray,
-                                 and each ray's count of hits
+  local_hits(o, d, tmax)         every hit of the points' own objects along o + t d, t in
+                                 (0, tmax]: (row, prim, t, barycentrics, order along the ray)
+                                 per hit, and each ray's count of hits
+  normals(prim, bary)            the geometric and interpolated normals of hits
 take(rows) gives the queries of some of the points (a batch split by material).
 """
 from __future__ import annotations
@@ -23,14 +25,38 @@ import numpy as np
 from ..accel import offset_origin
 from ..vec import dot
 
-AO, BEVEL = 0, 1
-_STREAMS = 2
-_SAMPLES = 256  # samples per stream and bounce (Blender's AO node allows at most 128)
+AO, BEVEL, BEVEL_HITS = 0, 1, 2
+_STREAMS = 3
 # Shader rays draw from groups far above the integrator's own (a few per bounce).
 _FIRST_GROUP = 1 << 24
 # Hits a local query walks through before it gives up on a ray (its later hits are not seen):
 # more surfaces of one object along one short ray are rare.
 _LOCAL_STEPS = 16
+
+
+def make_orthonormals(n):
+    """Cycles' make_orthonormals: tangents (t, b) (N,3) of unit normals n (N,3), t along
+    (1, 1, 1) x n (or (-1, 1, 1) x n where n's components are equal). Shader rays are drawn in
+    this frame as Cycles draws them: with few rays per point, the frame's turn about n changes
+    the distribution of their estimate (a bevel's probes meet a cube's edges differently)."""
+    x, y, z = n[:, 0], n[:, 1], n[:, 2]
+    same = (x == y) & (x == z)
+    a = np.stack([z - y, np.where(same, x + z, x - z), np.where(same, -y - x, y - x)], axis=1)
+    a = a / np.linalg.norm(a, axis=1, keepdims=True)
+    return a, np.cross(n, a)
+
+
+def sample_uniform_disk(u):
+    """Cycles' sample_uniform_disk (Shirley's concentric mapping): (N,2) points of the unit
+    disk from u (N,2)."""
+    a, b = 2.0 * u[:, 0] - 1.0, 2.0 * u[:, 1] - 1.0
+    wide = a * a > b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(wide, a, b)
+        phi = np.where(wide, 0.25 * np.pi * (b / a), 0.5 * np.pi - 0.25 * np.pi * (a / b))
+    r = np.where((a == 0.0) & (b == 0.0), 0.0, r)
+    phi = np.where(np.isfinite(phi), phi, 0.0)
+    return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=1)
 
 
 class SceneRays:
@@ -77,10 +103,11 @@ class ShaderRays:
         depth = self.depth if np.ndim(self.depth) == 0 else self.depth[rows]
         return ShaderRays(self.scene, self.prim[rows], self.sampler, self.idx[rows], depth)
 
-    def uniform(self, stream: int, k: int) -> np.ndarray:
-        """(N,2) uniforms in [0, 1) for ray k of `stream` at each point."""
-        group = _FIRST_GROUP + ((np.asarray(self.depth, np.int64) * _STREAMS + stream) * _SAMPLES + k % _SAMPLES)
-        return self.sampler.get(group, self.idx, 2)
+    def uniform(self, stream: int, k: int, count: int) -> np.ndarray:
+        """(N,2) uniforms in [0, 1) for ray k of the `count` a point traces in `stream`: Cycles'
+        path_branched_rng_2D, the rays of one sample stratified together."""
+        group = _FIRST_GROUP + np.asarray(self.depth, np.int64) * _STREAMS + stream
+        return self.sampler.branched(k, count).get(group, self.idx, 2)
 
     def _by_object(self, rows):
         """(object, rows of `rows` on it) per object of the points `rows`."""
@@ -108,27 +135,23 @@ class ShaderRays:
         out[live] = blocked
         return out
 
-    def local_hits(self, o, d, tmax, most: int):
+    def local_hits(self, o, d, tmax):
         """The hits of each point's own object along rays from o (N,3) (the ray starts there,
         nothing skipped) along unit d (N,3) up to tmax (N,): ((rows (H,), prim (H,), t (H,),
-        barycentrics (H,3)) of the first `most` hits of each ray, nearest first, count (N,)
-        of every hit found, up to _LOCAL_STEPS)."""
+        barycentrics (H,3) over the stored corners, order (H,) 0 for a ray's nearest hit, 1
+        for the next, ...), count (N,) of each ray's hits, up to _LOCAL_STEPS)."""
         o32 = np.ascontiguousarray(o, np.float32)
         tmax = np.asarray(tmax, np.float64)
         found, count = [], np.zeros(len(o), np.int64)
-        for obj, rows in self._by_object(np.arange(len(o))):
+        for obj, rows in self._by_object(np.flatnonzero(tmax > 0.0)):
             accel = self.scene.local(obj)
             start, skip, t0 = o32[rows], np.full(len(rows), -1, np.int64), np.zeros(len(rows))
             for _ in range(_LOCAL_STEPS):
-                if len(rows) == 0:
-                    break
                 h = accel.intersect(start, d[rows], tmax[rows] - t0, skip)
                 go = np.flatnonzero(h.prim >= 0)
                 if len(go) == 0:
                     break
-                first = count[rows[go]] < most
-                k = go[first]
-                found.append((rows[k], h.prim[k], t0[k] + h.t[k], h.b[k]))
+                found.append((rows[go], h.prim[go], t0[go] + h.t[go], h.b[go], count[rows[go]]))
                 count[rows[go]] += 1
                 # On from just through the hit triangle's plane, skipping it.
                 through = h.ng[go] * np.where(dot(h.ng[go], d[rows[go]]) >= 0.0, 1.0, -1.0)[:, None]
@@ -136,5 +159,16 @@ class ShaderRays:
                 t0, rows = t0[go] + h.t[go], rows[go]
         if not found:
             empty = np.zeros(0, np.int64)
-            return (empty, empty, np.zeros(0), np.zeros((0, 3))), count
+            return (empty, empty, np.zeros(0), np.zeros((0, 3)), empty), count
         return tuple(np.concatenate(x) for x in zip(*found)), count
+
+    def normals(self, prim, bary):
+        """(ng, n) (H,3) of hits on triangles prim (H,) at barycentrics bary (H,3) over the
+        stored corners: the triangle's winding normal (Cycles' hit Ng, flipped for a mirrored
+        object as Ember's stored winding already is) and its corner normals interpolated and
+        normalised (Cycles' triangle_smooth_normal; a flat face's are its normal), or ng where
+        they cancel."""
+        ng = np.asarray(self.scene.full.ng[prim], np.float64)
+        n = np.einsum("hk,hkc->hc", bary, self.scene.mesh.normals[prim].astype(np.float64))
+        length = np.linalg.norm(n, axis=1, keepdims=True)
+        return ng, np.where(length > 0.0, n / np.where(length > 0.0, length, 1.0), ng)

@@ -78,6 +78,8 @@ The path that reached the point (Light Path; Cycles' path state):
                (N,) int: the path's bounces so far, in total and by kind (for a shadow ray, the
                counts of the path that cast it); portal_bounce is 0 unless the scene has a Ray
                Portal BSDF (KERNEL_FEATURE_NODE_PORTAL)
+  min_ray_pdf  (N,) the smallest BSDF pdf of the path's non-singular bounces so far (Cycles'
+               min_ray_pdf; infinite for a camera ray's first hit): Bevel works only above 8
 
 Ray queries (Ambient Occlusion, Bevel: Cycles' shader ray tracing), not an array:
   ray_queries  an engine/nodes/rays.py ShaderRays of the points: the scene's Embree scenes and
@@ -115,7 +117,7 @@ FIELDS = ("P", "N", "Ng", "I", "backfacing", "uv", "generated", "object", "camer
           "uv_du", "uv_dv", "generated_du", "generated_dv", "dP", "ndc_from_world",
           "object_color", "object_alpha", "object_index", "object_random", "material_index",
           "path_flag", "bounce", "diffuse_bounce", "glossy_bounce", "transmission_bounce", "transparent_bounce",
-          "portal_bounce", "texcoord_normal", "ray_queries")
+          "portal_bounce", "texcoord_normal", "min_ray_pdf", "ray_queries")
 
 # Fields that default to another where the source does not give them.
 _DEFAULTS = {"texcoord_normal": "N"}
