@@ -19,7 +19,7 @@ from ember.engine.nodes.hits import RayState, SurfaceHits
 from ember.engine.nodes.program import compile
 from ember.engine.nodes.rays import SceneRays, ShaderRays
 from ember.engine.rng import Sampler
-from ember.engine.scene import Camera, Lights, Materials, Mesh, Scene, World
+from ember.engine.scene import LOBE_MICROFACET, MAT_DIFFUSE, Camera, Lights, Materials, Mesh, Scene, World
 
 from core_scenes import quads_mesh, settings
 
@@ -166,3 +166,44 @@ def test_ambient_occlusion_without_ray_queries_is_one():
     hits = _floor_hits(scene)
     plain = SurfaceHits(scene, hits.prim, hits.bary, hits.P(), hits.N(), hits.Ng(), hits.I())
     assert np.all(_ao(_ao_graph(1.0, 4), plain)[0] == 1.0)
+
+
+def _traced_material_graph():
+    """A Diffuse BSDF whose colour is an AO's Color and whose normal is a Bevel's."""
+    ao = Node("ShaderNodeAmbientOcclusion", "AO", (("inside", False), ("only_local", False), ("samples", 3)),
+              (Input("Color", "rgba", (0.8, 0.7, 0.6)), Input("Distance", "value", 0.8),
+               Input("Normal", "vector", (0.0, 0.0, 0.0))), (("Color", "rgba"), ("AO", "value")))
+    bevel = Node("ShaderNodeBevel", "Bevel", (("samples", 2),),
+                 (Input("Radius", "value", 0.2), Input("Normal", "vector", (0.0, 0.0, 0.0))), (("Normal", "vector"),))
+    diffuse = Node("ShaderNodeBsdfDiffuse", "Diffuse", (),
+                   (Input("Color", "rgba", (0.8, 0.8, 0.8), Link(0, "Color", "rgba")), Input("Roughness", "value", 0.0),
+                    Input("Normal", "vector", (0.0, 0.0, 0.0), Link(1, "Normal", "vector"))), (("BSDF", "shader"),))
+    return Graph((ao, bevel, diffuse), (("surface", Input("Surface", "shader", 0.0, Link(2, "BSDF", "shader"))),))
+
+
+def test_traced_nodes_render_the_same_whatever_the_batches():
+    """Rays traced from inside shaders draw each path's own numbers: batch sizes and worker
+    processes do not change the image, bit for bit; and the nodes do darken and bend it."""
+    from ember.engine.nodes.material import compile_material
+    from ember.engine.session import RenderSession
+    from test_batch_independence import open_box
+
+    scene = open_box(diffuse_bounces=2, samples=4)
+    graph = _traced_material_graph()
+    mp = compile_material(graph)
+    rows = [dict(kind=MAT_DIFFUSE, base_color=(0.8, 0.8, 0.8), lobes=mp.lobes, graph=graph, reads=mp.reads)]
+    rows += [dict(kind=MAT_DIFFUSE, base_color=(0.7, 0.2, 0.2)),
+             dict(lobes=[dict(kind=LOBE_MICROFACET, roughness=0.3, color=(0.9,) * 3)])]
+    rest = [dict(kind=MAT_DIFFUSE, base_color=(0.5,) * 3)] * 4
+    traced = scene.replace(materials=Materials.make(rows + rest))
+    plain = scene.replace(materials=Materials.make([dict(kind=MAT_DIFFUSE, base_color=(0.8, 0.7, 0.6))] + rows[1:] + rest))
+
+    def image(s, **kw):
+        session = RenderSession(s.replace(settings=s.settings.replace(**kw)))
+        session.run()
+        return session.film.mean()
+
+    first = image(traced)
+    for kw in (dict(batch_size=56), dict(batch_size=4096), dict(threads=2)):
+        assert np.array_equal(first, image(traced, **kw)), kw
+    assert first.mean() < 0.97 * image(plain).mean()  # unoccluded, the AO's colour itself

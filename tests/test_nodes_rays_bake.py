@@ -5,7 +5,9 @@ SAMPLES bake samples in Cycles and of as many evaluations in Ember, compared wit
 Per case the texels' differences are pooled in blocks of BLOCK x BLOCK texels (edges run
 through some of them), each block's sum over the square root of its summed variance a z-score;
 every block's must be under Z. Cycles' variance is taken to be Ember's, from Ember's spread
-over its evaluations. Both sides stratify the rays of one evaluation with the sample's others
+over its evaluations. A bevel's whole effect, how far its normal turns from N summed over the
+cube (dot(bevel, N) per texel), is pooled over every texel: a test of little noise where a
+block sees few edge texels. Both sides stratify the rays of one evaluation with the sample's others
 (path_branched_rng), and their stratifications differ in detail: Z allows for that."""
 import itertools
 
@@ -22,6 +24,7 @@ SAMPLES = 128
 SIZE = 24
 BLOCK = 4
 Z = 5.5
+Z_POOLED = 4.0
 
 
 def _uv_grid(mesh, cells):
@@ -140,3 +143,28 @@ def test_ambient_occlusion_and_bevel_match_cycles_bakes():
     # The cases vary: edges darken and bend where they should; a zero radius changes nothing.
     assert np.ptp(results["ao_corner"][0]) > 0.3 and np.ptp(results["bevel_0.1_4_flat"][0]) > 0.1
     assert np.ptp(results["bevel_0.3_2_smooth"][1]) > 0.1 and np.all(results["bevel_zero"][2] == 0.0)
+
+
+def _turn(radius, samples: int):
+    """dot(Bevel's normal, N): 1 inside the faces, less toward the edges."""
+    def build(nt):
+        n = nt.nodes.new("ShaderNodeBevel")
+        n.samples = samples
+        n.inputs["Radius"].default_value = radius
+        geometry = nt.nodes.new("ShaderNodeNewGeometry")
+        m = nt.nodes.new("ShaderNodeVectorMath")
+        m.operation = "DOT_PRODUCT"
+        nt.links.new(n.outputs["Normal"], m.inputs[0])
+        nt.links.new(geometry.outputs["Normal"], m.inputs[1])
+        return m.outputs["Value"]
+    return build
+
+
+def test_bevel_turns_the_normal_as_much_as_cycles():
+    cases = {f"turn_{radius}_{samples}": Placed(_turn(radius, samples), mesh=cube_mesh(False))
+             for radius, samples in ((0.15, 8), (0.25, 4))}
+    results = node_bake.bake_traced(cases, SAMPLES, size=32, columns=6)
+    for name, (cycles, ember, var) in results.items():
+        d, v = (cycles - ember)[:, 0], 2.0 * var[:, 0] / SAMPLES + 1e-10
+        assert abs(d.sum() / np.sqrt(v.sum())) < Z_POOLED, (name, (1.0 - cycles).mean(), (1.0 - ember).mean())
+        assert (1.0 - cycles[:, 0]).mean() > 0.02  # the edges turn the normal

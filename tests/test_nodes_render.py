@@ -145,8 +145,8 @@ def _ao_material(name, distance, samples, color, inside=False, only_local=False)
 
 def ambient_occlusion_scene():
     """Boxes on a floor, all emitting their AO: the floor's darkens toward the boxes, a box's
-    own (Only Local) toward its faces' edges from the inside, and the second box's toward the
-    first box and the floor."""
+    own (Only Local, Inside) toward its faces' edges from the inside, and the second box's
+    (Only Local, outside) not at all, though the floor and the first box are in reach."""
     sc = _scene()
     bpy.ops.mesh.primitive_plane_add(size=6)
     bpy.context.active_object.data.materials.append(_ao_material("Floor", 0.8, 4, (0.9, 0.7, 0.4)))
@@ -154,7 +154,7 @@ def ambient_occlusion_scene():
     bpy.context.active_object.data.materials.append(
         _ao_material("Inside", 0.6, 4, (0.3, 0.8, 0.9), inside=True, only_local=True))
     bpy.ops.mesh.primitive_cube_add(size=0.8, location=(0.9, 0.4, 0.4))
-    bpy.context.active_object.data.materials.append(_ao_material("Outside", 1.5, 2, (1.0, 1.0, 1.0)))
+    bpy.context.active_object.data.materials.append(_ao_material("Outside", 1.5, 2, (1.0, 1.0, 1.0), only_local=True))
     _camera(sc, (3.2, -3.2, 3.0), (0.95, 0, 0.785))
     return sc
 

@@ -32,8 +32,8 @@ NOT_BUILT = {
 }
 # Built nodes whose Cycles behaviour needs saying.
 NOTES = {
-    "ShaderNodeAmbientOcclusion": "photons and the photon map's final gather read 1 (no occlusion)",
-    "ShaderNodeBevel": "photons and the photon map's final gather read the unbevelled normal",
+    "ShaderNodeAmbientOcclusion": "traced on the path tracer's paths; the photon-map integrators read 1 (no occlusion)",
+    "ShaderNodeBevel": "traced on the path tracer's paths; the photon-map integrators read the unbevelled normal",
     "ShaderNodeParticleInfo": "Ember reads no particles: Cycles' values for an object that is no particle instance",
     "ShaderNodeSqueeze": "Cycles evaluates nothing for it: a socket it feeds keeps its own value",
 }

@@ -634,7 +634,7 @@ MUTATIONS = [
          file="engine/nodes/rays.py",
          old="blocked[rows] = self.scene.local(obj).occluded(",
          new="blocked[rows] = self.scene.full.occluded(",
-         tests=["tests/test_nodes_render.py::test_ambient_occlusion_renders_as_cycles"]),
+         tests=["tests/test_nodes_rays.py", "tests/test_nodes_render.py::test_ambient_occlusion_renders_as_cycles"]),
     dict(name="bevel_radius_1.03",
          note="Bevel's Radius 3 % too large",
          file="engine/nodes/bevel.py",
