@@ -1,5 +1,7 @@
-"""Nodes that trace rays (engine/nodes/rays.py) against analytic values, without Blender:
-Ambient Occlusion at points of a floor beside a wall, and Bevel's normal at a box's edge.
+"""Nodes that trace rays (engine/nodes/rays.py), without Blender: Ambient Occlusion at points
+of a floor beside a wall against its analytic value, Bevel beside a box's edge (it turns the
+normal toward the edge, for sharp paths only), and a material using both rendered the same
+whatever the batches and workers.
 
 AO beside a wall: a point on a floor (normal +z) at distance h from a wall (x = h, high and wide
 enough to catch every ray shorter than the AO distance D). Cosine-distributed directions project
@@ -21,7 +23,7 @@ from ember.engine.nodes.rays import SceneRays, ShaderRays
 from ember.engine.rng import Sampler
 from ember.engine.scene import LOBE_MICROFACET, MAT_DIFFUSE, Camera, Lights, Materials, Mesh, Scene, World
 
-from core_scenes import quads_mesh, settings
+from core_scenes import box_quads, quads_mesh, settings
 
 POINTS = 20000
 Z = 4.5  # standard errors allowed: a few tests, each far from failing by chance
@@ -207,3 +209,35 @@ def test_traced_nodes_render_the_same_whatever_the_batches():
     for kw in (dict(batch_size=56), dict(batch_size=4096), dict(threads=2)):
         assert np.array_equal(first, image(traced, **kw)), kw
     assert first.mean() < 0.97 * image(plain).mean()  # unoccluded, the AO's colour itself
+
+
+def test_bevel_only_for_sharp_paths():
+    """Bevel at points beside a box's edge turns the normal toward the side face on a camera
+    ray's hit (min_ray_pdf infinite), and leaves N for a path whose smallest BSDF pdf so far is
+    below 8 (a diffuse bounce: Cycles' blurry indirect rays) or with a zero radius."""
+    mesh = quads_mesh(box_quads((-0.5, -0.5, -0.5), (0.5, 0.5, 0.5)), [0] * 6)
+    scene = Scene(mesh, Materials.make([dict()]), Lights.make([]), World(),
+                  Camera(world_from_camera=np.eye(4), window=np.array([-1.0, 1.0, -1.0, 1.0])), settings())
+    n = 4000
+    x = np.linspace(0.42, 0.49, n)  # on the top face, within the radius of the +x edge
+    p = np.stack([x, np.zeros(n), np.full(n, 0.5)], axis=1)
+    up = np.tile([0.0, 0.0, 1.0], (n, 1))
+    prim = np.full(n, 2, np.int64)  # the top face's first triangle (below its diagonal y = x)
+    accel = Accel(mesh)
+    rays = ShaderRays(SceneRays(accel, accel, mesh), prim, Sampler(1, np.arange(n), np.zeros(n, np.int64)),
+                      np.arange(n), 0)
+
+    def bevel(radius, min_ray_pdf):
+        node = Node("ShaderNodeBevel", "Bevel", (("samples", 4),),
+                    (Input("Radius", "value", radius), Input("Normal", "vector", (0.0, 0.0, 0.0))),
+                    (("Normal", "vector"),))
+        graph = Graph((node,), (("n", Input("n", "vector", (0.0, 0.0, 0.0), Link(0, "Normal", "vector"))),))
+        ray = RayState(light_path.CAMERA, min_ray_pdf=min_ray_pdf, rays=rays)
+        hits = SurfaceHits(scene, prim, np.full((n, 3), 1.0 / 3.0), p, up, up, up, ray=ray)
+        return np.broadcast_to(compile(graph, {"n": "vector"}).run(hits.state())["n"], (n, 3))
+
+    sharp = bevel(0.1, np.inf)
+    assert sharp[:, 0].mean() > 0.05 and np.all(sharp[:, 0] >= -1e-12)  # toward +x, never away
+    assert np.allclose(np.linalg.norm(sharp, axis=1), 1.0)
+    assert np.array_equal(bevel(0.1, 1.0), up) and np.array_equal(bevel(0.0, np.inf), up)
+    assert not np.array_equal(bevel(0.1, 8.0), up)  # 8 itself still bevels
