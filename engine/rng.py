@@ -231,6 +231,24 @@ class Sampler:
                 self.index_r = _reverse_bits(index)  # bit-reversed sample index (a copy)
                 self._scratch = {}  # see _work: one Sampler serves one thread
 
+    def branched(self, branch: int, branches: int) -> "Sampler":
+        """The sampler of branch `branch` of `branches` taken at each path's sample (Cycles'
+        path_branched_rng: several rays from one shading point): its sample index becomes
+        sample * branches + branch, so under "sobol" the branches of one sample are
+        stratified together with the pixel's other samples; under "random" each branch is an
+        independent stream."""
+        out = object.__new__(Sampler)
+        out.pattern = self.pattern
+        with np.errstate(over="ignore"):
+            if self.pattern == "random":
+                out.key = _mix(self.key ^ (np.uint64(branch + 1) * _K_GROUP))
+                return out
+            out.key = self.key
+            index = _reverse_bits(self.index_r) * np.uint32(branches) + np.uint32(branch)
+            out.index_r = _reverse_bits(index)
+        out._scratch = {}
+        return out
+
     def get(self, dim: int, rows=None, k: int = 1, lanes=None) -> np.ndarray:
         """lanes: the lanes of the group to return, increasing (e.g. (0, 1, 3)), instead of
         the first k; the result is then (len(rows), len(lanes)). Only those are computed."""

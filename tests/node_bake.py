@@ -20,6 +20,13 @@ direction, the texel's ray differential (Blender's bake_differentials, half a te
 named attributes, MikkTSpace tangents, pointiness and islands as Cycles derives them
 (engine/blender/export_attributes.py), the object's and material's values, and a camera ray's
 path state.
+
+Nodes that trace rays (Ambient Occlusion, Bevel) bake with bake_traced(): Cycles averages many
+bake samples per texel, Ember as many evaluations of the graph, each with ray queries
+(engine/nodes/rays.py) against the object's own mesh and its own numbers (sampler pixel = the
+texel, sample = the evaluation), so both sides are means of the same estimator and the test
+compares them within their noise. Other objects are not in Ember's scene: a case's rays must
+not reach the next slot (SPACING away).
 """
 from __future__ import annotations
 
@@ -32,6 +39,7 @@ import numpy as np
 
 import bpy
 
+from ember.engine.accel import Accel
 from ember.engine.blender.export_attributes import MeshAttributes, object_attribute
 from ember.engine.blender.export_nodes import export_graph
 from ember.engine.nodes import light_path
@@ -39,7 +47,10 @@ from ember.engine.nodes.bump import bump_from_displacement
 from ember.engine.nodes.closures import closures
 from ember.engine.nodes.mesh_attributes import at_hits, object_random
 from ember.engine.nodes.program import compile
+from ember.engine.nodes.rays import SceneRays, ShaderRays
 from ember.engine.nodes.state import Attribute, ShadingState
+from ember.engine.rng import Sampler
+from ember.engine.scene import Mesh
 
 SIZE = 32
 SPACING = 3.0
@@ -221,6 +232,53 @@ class _Surface:
         mesh.loop_triangles.foreach_get("use_smooth", smooth)
         self.smooth_m = smooth[self.tri]
         self._bake_differentials(bake_uv[self.tri])
+        self.rays = None  # ShaderRays of the texels' points, for nodes that trace
+
+    def scene_rays(self) -> SceneRays:
+        """The object's own triangles in world space as a scene to trace (its corner normals:
+        the vertex normals on smooth faces, the face's on flat ones, as Ember exports them)."""
+        tris = self.attributes
+        m = self.world_from_object_m
+        world = self.co @ m[:3, :3].T + m[:3, 3]
+        corners = world[tris.triangle_verts]  # (T,3,3)
+        n = np.empty(3 * len(self.mesh.vertices))
+        self.mesh.vertex_normals.foreach_get("vector", n)
+        vertex = _normalize(n.reshape(-1, 3) @ self.object_from_world_m[:3, :3])[tris.triangle_verts]
+        face = _normalize(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
+        smooth = np.empty(len(self.mesh.loop_triangles), bool)
+        self.mesh.loop_triangles.foreach_get("use_smooth", smooth)
+        normals = np.where(smooth[:, None, None], vertex, face[:, None, :])
+        t = len(corners)
+        mesh = Mesh(corners.reshape(-1, 3).astype(np.float32), np.arange(3 * t, dtype=np.int32).reshape(t, 3),
+                    normals.astype(np.float32), np.zeros(t, np.int32))
+        accel = Accel(mesh)
+        return SceneRays(accel, accel, mesh)
+
+    def ray_queries(self):
+        return self.rays
+
+    def jitter(self, rng):
+        """Move each point within its texel's footprint as Cycles' baker does for samples after
+        the first (bake_jitter_barycentric: uniform over half a texel's barycentric
+        differentials either way, drawn again up to 10 times until inside the triangle, else
+        left at the centre); rng None puts them back."""
+        base = self._weights
+        if rng is None:
+            self.weights = base
+            return
+        du_dx, dv_dx, du_dy, dv_dy = self._differentials
+        u, v = base[:, 0].copy(), base[:, 1].copy()
+        todo = np.ones(self.n, bool)
+        for _ in range(10):
+            rx, ry = rng.random(self.n) - 0.5, rng.random(self.n) - 0.5
+            ju, jv = base[:, 0] + rx * du_dx + ry * du_dy, base[:, 1] + rx * dv_dx + ry * dv_dy
+            inside = todo & (ju > 0.0) & (jv > 0.0) & (ju + jv < 1.0)
+            u[inside], v[inside] = ju[inside], jv[inside]
+            todo &= ~inside
+        self.weights = np.stack([u, v, 1.0 - u - v], axis=1)
+
+    def min_ray_pdf(self):  # a bake's path has made no bounce: Cycles' FLT_MAX
+        return np.full(self.n, np.inf)
 
     def _bake_differentials(self, uv):
         """Blender's bake_differentials per triangle (half the barycentric change per texel, in
@@ -233,6 +291,8 @@ class _Surface:
         k = np.where(ok, 0.5 / np.where(ok, area, 1.0), 0.0)
         du_dx, dv_dx = (b[:, 1] - c[:, 1]) * k, (c[:, 1] - a[:, 1]) * k
         du_dy, dv_dy = (c[:, 0] - b[:, 0]) * k, (a[:, 0] - c[:, 0]) * k
+        self._differentials = (du_dx, dv_dx, du_dy, dv_dy)
+        self._weights = self.weights
         dpdu, dpdv = self._edges()
         dpdx = dpdu * dv_dx[:, None] + dpdv * (-du_dx - dv_dx)[:, None]
         dpdy = dpdu * dv_dy[:, None] + dpdv * (-du_dy - dv_dy)[:, None]
@@ -435,18 +495,14 @@ def _state(ob, size: int, camera, world_from_camera, view_from: str) -> ShadingS
     return ShadingState(surface.n, source=surface)
 
 
-def bake(cases: dict, size: int = SIZE, view_from: str = "ABOVE_SURFACE", columns: int | None = None) -> dict:
-    """{name: (cycles (S*S,3), ember (S*S,3))} for cases {name: build(node_tree) -> socket, or
-    Placed(build, ...)}; view_from: the baker's ABOVE_SURFACE (rays down the normal) or
-    ACTIVE_CAMERA (rays from the scene's camera). The objects stand in a row along x, or in
-    rows of `columns` centred on the origin: nearer it, as Cycles computes positions in float32
-    (far from the origin their rounding shows in the true normal, and in a Bump node's finite
-    differences of heights that depend on the position)."""
+def _bake_cycles(cases: dict, size: int, view_from: str, columns, samples: int = 1):
+    """The scene of the cases, baked by Cycles with `samples` samples per texel: ({name:
+    (object, output node, cycles (S*S,3))}, world_from_camera, camera)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
-    scene.cycles.samples = 1
+    scene.cycles.samples = samples
     scene.render.bake.view_from = view_from
     scene.render.bake.margin = 0  # texels no triangle covers stay black
     camera = _camera()
@@ -469,15 +525,52 @@ def bake(cases: dict, size: int = SIZE, view_from: str = "ABOVE_SURFACE", column
         bpy.context.view_layer.objects.active = objects[first]
         bpy.ops.object.bake(type="EMIT")
     bpy.context.view_layer.update()
-    world_from_camera = _world_from_camera(camera)
+    baked = {name: (ob, out, np.array(image.pixels[:], np.float64).reshape(size * size, 4)[:, :3])
+             for name, (ob, out, image) in made.items()}
+    return baked, _world_from_camera(camera), camera
+
+
+def bake(cases: dict, size: int = SIZE, view_from: str = "ABOVE_SURFACE", columns: int | None = None) -> dict:
+    """{name: (cycles (S*S,3), ember (S*S,3))} for cases {name: build(node_tree) -> socket, or
+    Placed(build, ...)}; view_from: the baker's ABOVE_SURFACE (rays down the normal) or
+    ACTIVE_CAMERA (rays from the scene's camera). The objects stand in a row along x, or in
+    rows of `columns` centred on the origin: nearer it, as Cycles computes positions in float32
+    (far from the origin their rounding shows in the true normal, and in a Bump node's finite
+    differences of heights that depend on the position)."""
+    baked, world_from_camera, camera = _bake_cycles(cases, size, view_from, columns)
     results = {}
-    for name, (ob, out, image) in made.items():
-        cycles = np.array(image.pixels[:], np.float64).reshape(size * size, 4)[:, :3]
+    for name, (ob, out, cycles) in baked.items():
         surface = _Surface(ob, size, camera, world_from_camera, view_from)
         ember = np.zeros((size * size, 3))
         ember[surface.covered] = evaluate(out, ShadingState(surface.n, source=surface))
         results[name] = (cycles, ember)
     log_conformance(results)
+    return results
+
+
+def bake_traced(cases: dict, samples: int, size: int = SIZE, columns: int | None = None, seed: int = 0) -> dict:
+    """{name: (cycles (S*S,3) the mean of `samples` bake samples, ember (S*S,3) the mean of
+    `samples` evaluations with ray queries, ember_var (S*S,3) the variance of one
+    evaluation)} for cases that trace rays (the module's docstring)."""
+    baked, world_from_camera, camera = _bake_cycles(cases, size, "ABOVE_SURFACE", columns, samples)
+    results = {}
+    for name, (ob, out, cycles) in baked.items():
+        surface = _Surface(ob, size, camera, world_from_camera, "ABOVE_SURFACE")
+        scene = surface.scene_rays()
+        texel = np.flatnonzero(surface.covered)
+        total, squares = np.zeros((surface.n, 3)), np.zeros((surface.n, 3))
+        for k in range(samples):
+            surface.jitter(np.random.default_rng((seed, k)) if k > 0 else None)
+            sampler = Sampler(seed, texel, np.full(len(texel), k))
+            surface.rays = ShaderRays(scene, surface.tri, sampler, np.arange(surface.n), 0)
+            value = evaluate(out, ShadingState(surface.n, source=surface))
+            total += value
+            squares += value * value
+        mean = total / samples
+        ember, var = np.zeros((size * size, 3)), np.zeros((size * size, 3))
+        ember[surface.covered] = mean
+        var[surface.covered] = np.maximum(squares / samples - mean * mean, 0.0) * samples / max(samples - 1, 1)
+        results[name] = (cycles, ember, var)
     return results
 
 

@@ -1,6 +1,6 @@
 """Input nodes against Cycles (tests/node_bake.py): Geometry, Object Info, Attribute, Color
 Attribute, UV Map, Tangent, Camera Data, Fresnel, Layer Weight, Light Path, Wireframe, Normal
-Map, Displacement, Vector Displacement, and the Point, Volume and Curves Info nodes.
+Map, Displacement, Vector Displacement, and the Point, Volume, Curves and Particle Info nodes.
 
 Besides the plane, cases bake on grids whose heights vary (smooth or flat shaded: their
 normals, pointiness and tangents vary), on grids cut into islands with coincident vertices
@@ -367,15 +367,20 @@ def test_light_path_matches_cycles_bake():
 
 
 def test_info_nodes_on_surfaces_match_cycles():
-    """Point, Volume and Curves Info read what a mesh surface has not: zeros."""
+    """Point, Volume, Curves and Particle Info read what a mesh surface has not: zeros, and for
+    Particle Info Cycles' dummy particle (its Random is the hash of index 0, not 0)."""
     cases = {}
     for kind, outputs in (("ShaderNodePointInfo", ("Position", "Radius", "Random")),
                           ("ShaderNodeVolumeInfo", ("Color", "Density", "Flame", "Temperature")),
                           ("ShaderNodeHairInfo", ("Is Strand", "Intercept", "Length", "Thickness", "Tangent Normal",
-                                                  "Random"))):
+                                                  "Random")),
+                          ("ShaderNodeParticleInfo", ("Index", "Random", "Age", "Lifetime", "Location", "Size",
+                                                      "Velocity", "Angular Velocity"))):
         for output in outputs:
             cases[f"{kind}_{output}"] = Placed(_output(kind, output), mesh=attribute_mesh())
-    _check(_bake(cases, size=8), len(cases))
+    results = _bake(cases, size=8)
+    _check(results, len(cases))
+    assert results["ShaderNodeParticleInfo_Random"][0].min() > 0.5
 
 
 def _color_field(nt, location=(0.15, 0.8, 0.75), rotation=(0.9, -0.4, 0.3), scale=(0.7, -0.6, 0.5)):

@@ -1,6 +1,7 @@
 """Math node, every operation, against Cycles (tests/node_bake.py): inputs sweep [-3, 3] over
 the plane (a from u, b from v, c a constant), so each operation meets negative, zero-crossing
-and fractional arguments; division and logarithm by values near 0 included."""
+and fractional arguments; division and logarithm by values near 0 included. Squeeze Value (Legacy), which Cycles
+does not evaluate: what it feeds keeps its own value."""
 import pytest
 
 from ember.engine.nodes.math import OPERATIONS
@@ -39,3 +40,29 @@ def test_every_math_operation_matches_cycles():
     bad = {name: node_bake.agreement(c, e) for name, (c, e) in results.items() if node_bake.agreement(c, e) < 0.999}
     assert bad == {}
     assert len(results) == len(OPERATIONS) + 1
+
+
+def _squeezed(target: str):
+    """Squeeze Value of varying inputs feeding a Math node's first input (its own value 0.25), or
+    the Emission's Color (its own value (0.2, 0.4, 0.6))."""
+    def build(nt):
+        squeeze = nt.nodes.new("ShaderNodeSqueeze")
+        nt.links.new(_sweep(nt, "X", -3.0, 3.0), squeeze.inputs["Value"])
+        nt.links.new(_sweep(nt, "Y", 0.5, 4.0), squeeze.inputs["Width"])
+        squeeze.inputs["Center"].default_value = 0.3
+        if target == "color":
+            nt.nodes["Emission"].inputs["Color"].default_value = (0.2, 0.4, 0.6, 1.0)
+            return squeeze.outputs[0]
+        m = nt.nodes.new("ShaderNodeMath")
+        m.operation = "ADD"
+        m.inputs[0].default_value, m.inputs[1].default_value = 0.25, 0.125
+        nt.links.new(squeeze.outputs[0], m.inputs[0])
+        return m.outputs[0]
+    return build
+
+
+def test_squeeze_value_is_dropped_as_in_cycles():
+    results = node_bake.bake({target: _squeezed(target) for target in ("math", "color")}, size=8)
+    for name, (cycles, ember) in results.items():
+        assert node_bake.agreement(cycles, ember) == 1.0, name
+    assert abs(results["math"][0] - 0.375).max() < 1e-6

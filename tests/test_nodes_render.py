@@ -6,6 +6,8 @@ photon emission all read the texture). Both renderers run SEEDS independent rend
 image's mean and its four quadrants' means agree within TOL (modelling: tessellation, float32)
 plus the Sidak-corrected noise band of the between-seed spread (a t-test with SEEDS - 1
 degrees of freedom per renderer). A 3 % error in a textured emitter's radiance fails it.
+Nodes that trace rays render here too: Ambient Occlusion as emission on a floor and boxes
+(every pixel is an AO estimate), outside and inside, local and not.
 
 GGX is set on both sides where the scene is glossy: Cycles 5.0's default, Multiscatter GGX, is
 not built yet (a different BSDF, 1-2 % brighter at high roughness)."""
@@ -129,6 +131,34 @@ def textured_emitter_scene(scale=1.0):
     return sc
 
 
+def _ao_material(name, distance, samples, color, inside=False, only_local=False):
+    mat, nt, out = _nodes(name)
+    ao = nt.nodes.new("ShaderNodeAmbientOcclusion")
+    ao.samples, ao.inside, ao.only_local = samples, inside, only_local
+    ao.inputs["Distance"].default_value = distance
+    ao.inputs["Color"].default_value = color + (1.0,)
+    em = nt.nodes.new("ShaderNodeEmission")
+    nt.links.new(ao.outputs["Color"], em.inputs["Color"])
+    nt.links.new(em.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def ambient_occlusion_scene():
+    """Boxes on a floor, all emitting their AO: the floor's darkens toward the boxes, a box's
+    own (Only Local, Inside) toward its faces' edges from the inside, and the second box's
+    (Only Local, outside) not at all, though the floor and the first box are in reach."""
+    sc = _scene()
+    bpy.ops.mesh.primitive_plane_add(size=6)
+    bpy.context.active_object.data.materials.append(_ao_material("Floor", 0.8, 4, (0.9, 0.7, 0.4)))
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(-0.2, 0.0, 0.5), rotation=(0, 0, 0.3))
+    bpy.context.active_object.data.materials.append(
+        _ao_material("Inside", 0.6, 4, (0.3, 0.8, 0.9), inside=True, only_local=True))
+    bpy.ops.mesh.primitive_cube_add(size=0.8, location=(0.9, 0.4, 0.4))
+    bpy.context.active_object.data.materials.append(_ao_material("Outside", 1.5, 2, (1.0, 1.0, 1.0), only_local=True))
+    _camera(sc, (3.2, -3.2, 3.0), (0.95, 0, 0.785))
+    return sc
+
+
 class _Film:
     def on_progress(self, layer, progress):
         self.film = progress.film
@@ -191,3 +221,7 @@ def test_procedural_materials_render_as_cycles(tmp_path):
 @pytest.mark.parametrize("integrator", ["PATH", "PHOTON"])
 def test_a_textured_emitter_lights_as_cycles(integrator, tmp_path):
     _compare(textured_emitter_scene, integrator, tmp_path, 2)
+
+
+def test_ambient_occlusion_renders_as_cycles(tmp_path):
+    _compare(ambient_occlusion_scene, "PATH", tmp_path, 1)

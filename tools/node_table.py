@@ -21,20 +21,21 @@ START, END = "<!-- node-table:start -->", "<!-- node-table:end -->"
 
 # Node kinds Ember does not build, and why.
 NOT_BUILT = {
-    "ShaderNodeAmbientOcclusion": "needs ray queries from inside a shader",
-    "ShaderNodeBevel": "needs ray queries from inside a shader",
     "ShaderNodeOutputAOV": "AOV passes are not written yet",
-    "ShaderNodeParticleInfo": "particles are not read (a mesh gets Cycles' zeros without it)",
-    "ShaderNodeRadialTiling": "not built yet",
     "ShaderNodeScript": "OSL scripts: no OSL compiler in Ember",
     "ShaderNodeShaderToRGB": "EEVEE only; Cycles does not support it either",
-    "ShaderNodeSqueeze": "not built yet",
-    "ShaderNodeTexIES": "IES profiles are not read yet",
     "ShaderNodeUVAlongStroke": "Freestyle line styles only",
     "ShaderNodeVolumeAbsorption": "volumes are not rendered yet",
     "ShaderNodeVolumeCoefficients": "volumes are not rendered yet",
     "ShaderNodeVolumePrincipled": "volumes are not rendered yet",
     "ShaderNodeVolumeScatter": "volumes are not rendered yet",
+}
+# Built nodes whose Cycles behaviour needs saying.
+NOTES = {
+    "ShaderNodeAmbientOcclusion": "traced on the path tracer's paths; the photon-map integrators read 1 (no occlusion)",
+    "ShaderNodeBevel": "traced on the path tracer's paths; the photon-map integrators read the unbevelled normal",
+    "ShaderNodeParticleInfo": "Ember reads no particles: Cycles' values for an object that is no particle instance",
+    "ShaderNodeSqueeze": "Cycles evaluates nothing for it: a socket it feeds keeps its own value",
 }
 # Structure the exporter resolves, not nodes that compute: outputs, groups, the base classes.
 STRUCTURE = {"ShaderNode", "ShaderNodeTree", "ShaderNodeGroup", "ShaderNodeCustomGroup", "ShaderNodeOutputMaterial",
@@ -54,7 +55,7 @@ def rows() -> list:
         if kind in approximated:
             out.append(("Shader", name, kind, "approximated", "rendered as a diffuse of its colour"))
         elif kind in REGISTRY:
-            out.append((REGISTRY[kind].menu, name, kind, "built", ""))
+            out.append((REGISTRY[kind].menu, name, kind, "built", NOTES.get(kind, "")))
         else:
             out.append(("-", name, kind, "not built", NOT_BUILT.get(kind, "not built yet")))
     return sorted(out)

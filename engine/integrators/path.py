@@ -29,12 +29,13 @@ from ..accel import Accel, offset_origin
 from ..bsdf.closure import LABEL_TRANSPARENT
 from ..bsdf.fast_path import make_closure, plain_lambert_albedo
 from ..nodes import light_path as lp
-from ..nodes.hits import COUNT_FIELDS, camera_differentials, camera_footprint
+from ..nodes.hits import COUNT_FIELDS, RayState, camera_differentials, camera_footprint
 from ..nodes.material import MaterialPrograms
+from ..nodes.rays import SceneRays, ShaderRays
 from ..errors import Cancelled
 from ..lights.light_set import LightSet
 from ..rng import Sampler
-from ..scene import RAY_CAMERA, Scene
+from ..scene import RAY_CAMERA, RAY_SHADOW, Scene
 from .. import passes as passes_mod
 from ..visibility import RayVisibility
 from .base import Integrator, Stage
@@ -88,9 +89,15 @@ class PathTracer:
         reads = self.programs.reads | lights.world_reads
         self.track_flag = "path_flag" in reads
         self.track_dP = "dP" in reads
-        self.track = self.track_flag or self.track_dP or bool(reads & COUNT_FIELDS)
+        self.track = self.track_flag or self.track_dP or bool(reads & COUNT_FIELDS) or "min_ray_pdf" in reads
         if reads & COUNT_FIELDS - {"bounce"} and not self.light_paths.counts:
             self.light_paths = dataclasses.replace(self.light_paths, counts=True)
+        if "min_ray_pdf" in reads and not self.light_paths.min_pdf:
+            self.light_paths = dataclasses.replace(self.light_paths, min_pdf=True)
+        # Programs that trace rays (Ambient Occlusion, Bevel): what they trace against.
+        self.shader_rays = None
+        if "ray_queries" in reads:
+            self.shader_rays = SceneRays(self.visibility.views.get(RAY_SHADOW, accel), accel, scene.mesh)
 
     def render(self, sampler, px: np.ndarray, py: np.ndarray, stop=None, tally=None) -> np.ndarray:
         """Radiance estimates (N,3), one path per pixel (px, py). Raises Cancelled if stop is set.
@@ -129,12 +136,12 @@ class PathTracer:
                 break
             hit = paths.intersect(self.visibility, paths.bounces.ray, t_first)  # one Embree call
             t_first = None
-            self._emission(L, paths, hit, gather, tally)  # found by the rays, weighted by MIS
+            self._emission(L, paths, hit, gather, tally, sampler)  # found by the rays, weighted by MIS
             paths = paths.arrive(hit, np.flatnonzero(hit.prim >= 0), self.mesh.material, self.needs_bary)
             paths = self._terminate(paths)  # bounce limits, holdouts
             if len(paths) == 0 and not (refill is not None and refill.left > 0):
                 break
-            bsdf = self._closure(paths, tally)
+            bsdf = self._closure(paths, tally, sampler)
             q = self._survival(paths, bsdf)  # Russian roulette's, fixed before sampling
             if paths.specular is not None:  # light found from a caustic end on is not the caustic map's
                 paths.specular &= ~gather.caustic_ends[paths.mat]
@@ -192,7 +199,7 @@ class PathTracer:
         k = min(refill.pool - len(paths), refill.left)
         return paths.join(self._start(refill.take(k), gather, max_depth, per_path=True))
 
-    def _emission(self, L, paths: PathState, hit, gather: Gather, tally) -> None:
+    def _emission(self, L, paths: PathState, hit, gather: Gather, tally, sampler) -> None:
         """Emission the rays find, weighted by the balance heuristic against light sampling
         (pdf_prev / (pdf_prev + p_L); 1 where no_mis): light objects they pass on their way
         (those do not stop them), suns and the world where they escape, emissive triangles
@@ -224,7 +231,8 @@ class PathTracer:
             r = np.flatnonzero(emits)
             prim, pdf_prev = hit.prim[r], paths.pdf_prev[r]
             Le = take(self.materials.emission, self.mesh.material[prim])
-            ray = b.record(r, hit.t[r]) if self.track else None
+            ray = self._ray_state(b.record(r, hit.t[r]) if self.track else None, prim, sampler, idx[r],
+                                  rows_of(depth, r))
             at = hit.take(r)
             Le = emitted(self.scene, self.programs, self.flat_normal, Le, at, take(paths.d, r), ray)
             cos_l = np.abs(dot(take(paths.d, r), at.ng))
@@ -254,9 +262,10 @@ class PathTracer:
             ends = ends | (self.visibility.holdout[paths.prim] & (b.ray == RAY_CAMERA))
         return paths.take(np.flatnonzero(~ends)) if ends.any() else paths
 
-    def _closure(self, paths: PathState, tally):
+    def _closure(self, paths: PathState, tally, sampler):
         """The BSDF at the paths' vertices, in the shading frame flipped to the side the ray
-        came from (two-sided, like Cycles); paths.ng becomes the flipped geometric normal."""
+        came from (two-sided, like Cycles); paths.ng becomes the flipped geometric normal.
+        Programs that trace rays get the scene and the paths' numbers of `sampler`."""
         wo = -paths.d
         frame = None
         if self.flat_frames is not None:
@@ -265,12 +274,23 @@ class PathTracer:
             ng_f, ns = shading_frame(self.mesh, self.flat_normal, paths.prim, paths.bary, paths.ng, wo)
         paths.ng = ng_f
         b, options = paths.bounces, self.closure_options
+        ray = self._ray_state(b.record() if self.track else None, paths.prim, sampler, paths.idx, paths.depth)
         bsdf = make_closure(self.scene, self.lambert_albedo, paths.mat, ns, ng_f, wo, paths.prim, paths.bary,
-                            options.no_caustics(b), options.blur(b), frame, self.programs, paths.p,
-                            b.record() if self.track else None)
+                            options.no_caustics(b), options.blur(b), frame, self.programs, paths.p, ray)
         if tally and paths.depth == 0:
             tally.first_hit(paths.idx, bsdf)
         return bsdf
+
+    def _ray_state(self, ray, prim, sampler, idx, depth):
+        """The record `ray` (a RayState, or None) of paths idx (N,) at their vertices on
+        triangles prim (N,), at bounce depth, with the ray queries their programs may make
+        (Ambient Occlusion, Bevel) where some program traces rays. One vertex draws the same
+        numbers for its emission and its closure, so both see the same occlusion."""
+        if self.shader_rays is None:
+            return ray
+        ray = ray if ray is not None else RayState(lp.CAMERA)
+        ray.rays = ShaderRays(self.shader_rays, prim, sampler, idx, depth)
+        return ray
 
     def _survival(self, paths: PathState, bsdf) -> np.ndarray:
         """Russian roulette's survival probability q (N,): the BSDF's largest reflectance

@@ -246,9 +246,10 @@ class Bounces:
         dP = at(self.dP)
         if dP is not None and t is not None:
             dP = dP + t * at(self.dD)
+        min_pdf = np.inf if self.min_pdf is None else at(self.min_pdf)
         return RayState(lp.CAMERA if self.flag is None else at(self.flag), at(self.total) + self.base,
                         by_label[LABEL_DIFFUSE], by_label[LABEL_GLOSSY], by_label[LABEL_TRANSMIT],
-                        by_label[LABEL_TRANSPARENT], dP)
+                        by_label[LABEL_TRANSPARENT], dP, min_pdf)
 
     def count(self, bs, rows, limits: np.ndarray) -> "Bounces":
         """The counts after the bounce sampled in bs (BSDFSample) at rows (N,) (this state's

@@ -34,6 +34,8 @@ class NodeType:
     Blender's Add menu it sits in (the coverage table). `uses_links`: evaluate takes a fourth
     argument, the identifiers of the outputs the graph reads, for a node whose values depend on
     which of its outputs are linked (Cycles decides some settings when it compiles a node).
+    `inert`: Cycles builds nothing for this kind, so a socket linked to it keeps its own value
+    (engine/nodes/program.py drops such links before compiling).
     `notes(node)`: what this node of the graph renders differently from Cycles (approximations,
     each a short phrase), reported once per material; None when it renders as Cycles does."""
 
@@ -43,6 +45,7 @@ class NodeType:
     reads: object = ()
     uses_links: bool = False
     notes: Callable = None
+    inert: bool = False
 
     def run(self, node, inputs, state, used) -> dict:
         """evaluate(), told the outputs used where it asks for them."""
@@ -59,11 +62,11 @@ class NodeType:
         return set(self.reads)
 
 
-def node(kind: str, menu: str, reads=(), uses_links: bool = False, notes: Callable = None):
+def node(kind: str, menu: str, reads=(), uses_links: bool = False, notes: Callable = None, inert: bool = False):
     """Decorator: the function becomes a NodeType (collected by engine/nodes/registry.py)."""
     def make(fn):
         return NodeType(kind, menu, fn, reads if isinstance(reads, dict) or callable(reads) else tuple(reads),
-                        uses_links, notes)
+                        uses_links, notes, inert)
     return make
 
 

@@ -54,20 +54,24 @@ class RayState:
     path_state.h): flag, Cycles' PATH_RAY_* bits of the ray that reached them (light_path.py);
     the bounce counts (bounce, diffuse_bounce, glossy_bounce, transmission_bounce,
     transparent_bounce); dP the ray footprint's radius at the points (sd->dP), or None: the
-    camera's at a first hit. Each an (N,) array or one value for all."""
+    camera's at a first hit; min_ray_pdf the smallest pdf of the path's non-singular bounces
+    so far (Cycles' min_ray_pdf; infinite before any). Each an (N,) array or one value for
+    all. rays: the ray queries the path can make from the points (engine/nodes/rays.py
+    ShaderRays: the scene and the path's random numbers), or None."""
 
-    __slots__ = ("flag",) + _COUNTS + ("dP",)
+    __slots__ = ("flag",) + _COUNTS + ("dP", "min_ray_pdf", "rays")
 
     def __init__(self, flag, bounce=0, diffuse_bounce=0, glossy_bounce=0, transmission_bounce=0,
-                 transparent_bounce=0, dP=None):
-        self.flag, self.dP = flag, dP
+                 transparent_bounce=0, dP=None, min_ray_pdf=np.inf, rays=None):
+        self.flag, self.dP, self.min_ray_pdf, self.rays = flag, dP, min_ray_pdf, rays
         self.bounce, self.diffuse_bounce, self.glossy_bounce = bounce, diffuse_bounce, glossy_bounce
         self.transmission_bounce, self.transparent_bounce = transmission_bounce, transparent_bounce
 
     def take(self, rows) -> "RayState":
         """The record of points `rows`."""
         pick = lambda v: v if v is None or np.ndim(v) == 0 else v[rows]  # noqa: E731
-        return RayState(*(pick(getattr(self, name)) for name in self.__slots__))
+        rays = None if self.rays is None else self.rays.take(rows)
+        return RayState(*(pick(getattr(self, name)) for name in self.__slots__[:-1]), rays=rays)
 
     def escaped(self) -> "RayState":
         """What the world's shader sees of these paths' rays leaving the scene: their flags with
@@ -416,6 +420,12 @@ class SurfaceHits:
 
     def transparent_bounce(self):
         return self._count("transparent_bounce")
+
+    def ray_queries(self):
+        return self.ray.rays
+
+    def min_ray_pdf(self):
+        return np.broadcast_to(np.asarray(self.ray.min_ray_pdf, np.float64), (len(self.prim),))
 
     def portal_bounce(self):  # Ember has no Ray Portal BSDF
         return np.zeros(len(self.prim), np.int64)

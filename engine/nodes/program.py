@@ -16,7 +16,7 @@ copies them (scene/shader_graph.cpp refine_bump_nodes), the copies running on th
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -99,6 +99,7 @@ def _value(ref, env, src, dst):
 def compile(graph: Graph, outputs: dict) -> Program:
     """The program computing `outputs` {name: wanted type} from the graph's outputs of those
     names (a name the graph does not have is the zero of its type)."""
+    graph = _without_inert(graph)
     order = _needed(graph, [graph.output(name) for name in outputs])
     used = _used(graph, order, [graph.output(name) for name in outputs])
     consts: dict = {}  # (node, socket) -> value, for folded nodes
@@ -146,6 +147,20 @@ def compile(graph: Graph, outputs: dict) -> Program:
             ref, src = ref_of(socket)
             results[name] = (ref, src, wanted)
     return Program(ops, results, reads, warnings)
+
+
+def _without_inert(graph: Graph) -> Graph:
+    """The graph with every link leaving an inert node kind (one Cycles builds nothing for)
+    removed: the socket it fed keeps its own value, as in Cycles."""
+    inert = {i for i, n in enumerate(graph.nodes) if getattr(REGISTRY.get(n.kind), "inert", False)}
+    if not inert:
+        return graph
+
+    def cut(socket: Input) -> Input:
+        return replace(socket, link=None) if socket.link is not None and socket.link.node in inert else socket
+
+    nodes = tuple(replace(n, inputs=tuple(cut(s) for s in n.inputs)) for n in graph.nodes)
+    return replace(graph, nodes=nodes, outputs=tuple((name, cut(s)) for name, s in graph.outputs))
 
 
 def _bump_samples(graph: Graph, b: int, order, consts: dict, ops: list, reads: set) -> list:

@@ -78,6 +78,14 @@ The path that reached the point (Light Path; Cycles' path state):
                (N,) int: the path's bounces so far, in total and by kind (for a shadow ray, the
                counts of the path that cast it); portal_bounce is 0 unless the scene has a Ray
                Portal BSDF (KERNEL_FEATURE_NODE_PORTAL)
+  min_ray_pdf  (N,) the smallest BSDF pdf of the path's non-singular bounces so far (Cycles'
+               min_ray_pdf; infinite for a camera ray's first hit): Bevel works only above 8
+
+Ray queries (Ambient Occlusion, Bevel: Cycles' shader ray tracing), not an array:
+  ray_queries  an engine/nodes/rays.py ShaderRays of the points: the scene's Embree scenes and
+               the path's random numbers; None where the renderer gives none (a bake, a
+               light's or the world's shader, the photon integrators): Cycles' answer where it
+               cannot trace (no BVH yet) is then what the nodes give
 
 Named attributes, by ShadingState.attribute(name) (not fields): the mesh's own attributes by
 their names (UV maps, colour attributes, generic attributes on points, faces, corners or
@@ -109,10 +117,12 @@ FIELDS = ("P", "N", "Ng", "I", "backfacing", "uv", "generated", "object", "camer
           "uv_du", "uv_dv", "generated_du", "generated_dv", "dP", "ndc_from_world",
           "object_color", "object_alpha", "object_index", "object_random", "material_index",
           "path_flag", "bounce", "diffuse_bounce", "glossy_bounce", "transmission_bounce", "transparent_bounce",
-          "portal_bounce", "texcoord_normal")
+          "portal_bounce", "texcoord_normal", "min_ray_pdf", "ray_queries")
 
 # Fields that default to another where the source does not give them.
 _DEFAULTS = {"texcoord_normal": "N"}
+# Fields that are objects rather than arrays, None where the source does not give them.
+_OBJECTS = ("ray_queries",)
 
 
 @dataclass(frozen=True)
@@ -133,12 +143,17 @@ class ShadingState:
     def __init__(self, n: int, source=None, **fields):
         self.n = n
         self._source = source
-        self._fields = {k: np.asarray(v) for k, v in fields.items()}
+        self._fields = {k: v if k in _OBJECTS else np.asarray(v) for k, v in fields.items()}
         self._attributes: dict = {}
 
     def __getattr__(self, name: str):
         if name.startswith("_") or name not in FIELDS:
             raise AttributeError(name)
+        if name in _OBJECTS:
+            if name not in self._fields:
+                make = getattr(self._source, name, None)
+                self._fields[name] = make() if make is not None else None
+            return self._fields[name]
         if name not in self._fields:
             make = getattr(self._source, name, None)
             if make is None and name in _DEFAULTS:
