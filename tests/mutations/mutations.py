@@ -56,8 +56,8 @@ MUTATIONS = [
     dict(name="light_pmf_off_by_one",
          note="next-event estimation divides by the pmf of the next light",
          file="engine/lights/light_set.py",
-         old="pmf = self.select.pmf(index)",
-         new="pmf = self.select.pmf(np.minimum(index + 1, self.count - 1))",
+         old="index = self.select.sample_index(u)\n            pmf = self.select.pmf(index)",
+         new="index = self.select.sample_index(u)\n            pmf = self.select.pmf(np.minimum(index + 1, self.count - 1))",
          tests=["tests/test_sampler_directions.py", "tests/test_path_analytic.py"]),
     dict(name="env_pdf_without_sin_theta",
          note="environment pdf p_uv / (2 pi^2) without the 1 / sin(theta) of the mapping",
@@ -105,8 +105,8 @@ MUTATIONS = [
     dict(name="photon_flux_scale_1.03",
          note="every photon carries 3 % too much flux",
          file="engine/integrators/photon/tracing.py",
-         old="d, beta, skip = take(em.d, live), take(em.flux, live), em.prim[live]",
-         new="d, beta, skip = take(em.d, live), 1.03 * take(em.flux, live), em.prim[live]",
+         old="idx=live, beta=take(em.flux, live), specular",
+         new="idx=live, beta=1.03 * take(em.flux, live), specular",
          tests=["tests/test_photon.py"]),
     dict(name="photon_refraction_scales_flux",
          note="photons refracting into glass keep radiance's 1 / eta^2 (not the adjoint BSDF)",
@@ -161,8 +161,8 @@ MUTATIONS = [
     dict(name="icache_gather_keeps_first_emission",
          note="record gather rays count the emission they hit, which direct light sampling counts again",
          file="engine/integrators/irradiance/integrator.py",
-         old="first_emission=False,\n",
-         new="first_emission=True,\n",
+         old="Gather(first_emission=False, max_depth=max(s.max_depth - 1, 0),\n                                               caustic_ends=self._caustic_ends(), t_first",
+         new="Gather(first_emission=True, max_depth=max(s.max_depth - 1, 0),\n                                               caustic_ends=self._caustic_ends(), t_first",
          tests=["tests/test_icache.py"]),
     dict(name="icache_translational_gradient_sign",
          note="records' translational gradients point the wrong way",
@@ -228,7 +228,7 @@ MUTATIONS = [
     dict(name="adaptive_check_does_not_wait",
          note="an adaptive check decides before every earlier pass is in the film",
          file="engine/runner.py",
-         old="""                if self.passes < p:
+         old="""                if self.passes < p - self.offset:
                     yield None  # the check needs every earlier pass in the film
                     continue
 """,
