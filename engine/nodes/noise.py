@@ -3,8 +3,9 @@
 
 Coordinates are float32 arrays: Cycles computes in float32, and which lattice cell a point
 falls in (a floor) and the coordinate of each octave (lacunarity^i times the point, with a
-float32 rounding at each product) are decided in that precision; the gradients, fades and
-sums after the floor are continuous in the coordinate and computed in float64. A point's
+float32 rounding at each product) are decided in that precision. One octave's gradients,
+fades and interpolation are float32 too, as Cycles' (half the memory traffic of float64, which
+is what bounds NumPy here); the fractal sums over octaves are float64. A point's
 octaves, the colour's offset copies and the distortion lookups are separate noise
 evaluations, each one pass over all the points.
 
@@ -54,7 +55,7 @@ def _gradient_tables():
 def _lattice(d: int, g: np.ndarray) -> dict:
     """What perlin() looks up for dimension d: per axis, the gradient coefficient of each hash
     value (its low bits, `mask`), contiguous for np.take."""
-    return {"gradient": tuple(np.ascontiguousarray(g[:, k]) for k in range(d)), "mask": np.uint32(len(g) - 1)}
+    return {"gradient": tuple(np.ascontiguousarray(g[:, k], F32) for k in range(d)), "mask": np.uint32(len(g) - 1)}
 
 
 _LATTICE = {d: _lattice(d, g) for d, g in _gradient_tables().items()}
@@ -64,7 +65,7 @@ CORNERS = 1 << 15
 
 def fade(t):
     """Perlin's quintic fade 6t^5 - 15t^4 + 10t^3 (svm/noise.h fade)."""
-    return t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
+    return t * t * t * (t * (t * F32(6.0) - F32(15.0)) + F32(10.0))
 
 
 class _Workspace:
@@ -76,15 +77,15 @@ class _Workspace:
         m = n << d
         self.u32 = [np.empty(m, np.uint32) for _ in range(5)]  # a, b, c and two scratch
         self.index = np.empty(m, np.intp)
-        self.f64 = [np.empty(m) for _ in range(2)]  # the gradients, a term
+        self.flt = [np.empty(m, F32) for _ in range(2)]  # the gradients, a term
 
     def arrays(self, n: int, d: int):
-        """(uint32 a, b, c, scratch, scratch), intp index, (float64 gradients, term), each
+        """(uint32 a, b, c, scratch, scratch), intp index, (float32 gradients, term), each
         shaped (2^d, n)."""
         m = n << d
         shape = (1 << d, n)
         return ([u[:m].reshape(shape) for u in self.u32], self.index[:m].reshape(shape),
-                [f[:m].reshape(shape) for f in self.f64])
+                [f[:m].reshape(shape) for f in self.flt])
 
 
 _LOCAL = threading.local()
@@ -107,7 +108,7 @@ def _side(d: int, k: int, bit: int) -> tuple:
 
 def perlin(coords, work: _Workspace | None = None) -> np.ndarray:
     """Perlin noise (perlin_1d .. perlin_4d) at float32 coordinates `coords` (1 to 4 arrays of
-    one shape S), unscaled, float64 of shape S. All 2^d corners are hashed in one lookup3 pass
+    one shape S), unscaled, float32 of shape S. All 2^d corners are hashed in one lookup3 pass
     over arrays (2^d, n) in `work`'s memory (where `work` is given, the result is a view
     into it, valid until its next use).
     Per axis a corner's key and offset take one of two values (cell or cell + 1, f or f - 1),
@@ -124,7 +125,7 @@ def perlin(coords, work: _Workspace | None = None) -> np.ndarray:
     cells, fracs = [], []
     for x in coords:
         cell = np.floor(x)
-        fracs.append((x - cell).astype(np.float64))  # exact: x and floor(x) share their leading bits
+        fracs.append(x - cell)  # exact: x and floor(x) share their leading bits
         cells.append(cell.astype(np.int32).view(np.uint32))
     seed = hash_seed(d)
     with np.errstate(over="ignore"):
@@ -152,7 +153,7 @@ def perlin(coords, work: _Workspace | None = None) -> np.ndarray:
         np.take(lattice["gradient"][k], index, mode="wrap", out=into)
         v = into.reshape(corners)
         v[_side(d, k, 0)] *= fracs[k]
-        v[_side(d, k, 1)] *= fracs[k] - 1.0
+        v[_side(d, k, 1)] *= fracs[k] - F32(1.0)
         if k:
             g += term
     # Multilinear interpolation, x first, as Cycles' bi_mix / tri_mix / quad_mix.
