@@ -154,7 +154,9 @@ def main(argv=None):
     args = ap.parse_args(argv)
     from _bootstrap import load_ember
     load_ember()
+    from ember.engine.allocator import keep_freed_memory
     from ember.engine.nodes import noise, voronoi
+    keep_freed_memory()  # as a tracing process has it
     rng = np.random.default_rng(1)
     n = args.points
     p = [(rng.random(n) * 8.0 - 4.0).astype(np.float32) for _ in range(3)]

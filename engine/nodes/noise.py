@@ -59,8 +59,9 @@ def _lattice(d: int, g: np.ndarray) -> dict:
 
 
 _LATTICE = {d: _lattice(d, g) for d, g in _gradient_tables().items()}
-# Points per chunk: 2^15 corner values (2^d per point) keep a chunk's arrays in cache.
-CORNERS = 1 << 15
+# Points per chunk: 2^17 corner values (2^d per point). Each chunk pays some forty NumPy calls
+# whatever its size, and larger chunks than this fall out of the cache.
+CORNERS = 1 << 17
 
 
 def fade(t):
@@ -224,25 +225,41 @@ def _fold(mask, new, old) -> tuple:
     return tuple(_where(mask, n, o) for n, o in zip(new, old))
 
 
+def snoise_sets(sets) -> list:
+    """[snoise(coords) for coords in sets] (each a tuple of (N,) arrays), in one call over all
+    their points: the NumPy calls of a noise evaluation cost as much for a thousand points as
+    for a few times more, and a batch's octaves are such sets. Every point's value is the one
+    its own call gives (a point's noise does not depend on the others)."""
+    if len(sets) == 1 or any(np.ndim(x) != 1 for coords in sets for x in coords):
+        return [snoise(coords) for coords in sets]
+    return np.split(snoise(tuple(np.concatenate(axis) for axis in zip(*sets))), len(sets))
+
+
 def fbm(coords, detail, roughness, lacunarity, normalize: bool):
     """Fractal Brownian motion (noise_fbm): octaves of snoise at lacunarity^i times the point,
     weighted roughness^i; a fractional detail blends in one more octave; normalised to [0, 1]
-    by the sum of weights when asked."""
+    by the sum of weights when asked. The octaves' coordinates do not depend on the noise, so
+    all octaves are evaluated in one snoise call."""
     whole, top, rmd = _octaves(detail)
     lac = np.asarray(lacunarity).astype(F32)
     fscale = F32(1.0) * np.ones_like(lac)
+    sets = []
+    for i in range(top + 1):
+        sets.append(scaled(coords, fscale))
+        fscale = _where(i <= whole, fscale * lac, fscale)
+    fractional = bool(np.any(rmd != 0.0))
+    noises = snoise_sets(sets + [scaled(coords, fscale)] if fractional else sets)
     amp, maxamp, total = 1.0, 0.0, 0.0
     for i in range(top + 1):
-        t = snoise(scaled(coords, fscale))
+        t = noises[i]
         on = i <= whole
         total = _where(on, total + t * amp, total)
         maxamp = _where(on, maxamp + amp, maxamp)
         amp = _where(on, amp * roughness, amp)
-        fscale = _where(on, fscale * lac, fscale)
     plain = 0.5 * total / maxamp + 0.5 if normalize else total
-    if not np.any(rmd != 0.0):
+    if not fractional:
         return plain + np.zeros(np.shape(coords[0]))
-    t = snoise(scaled(coords, fscale))
+    t = noises[top + 1]
     total2 = total + t * amp
     if normalize:
         blend = plain + rmd * (0.5 * total2 / (maxamp + amp) + 0.5 - plain)
