@@ -5,9 +5,10 @@ Coordinates are float32 arrays: Cycles computes in float32, and which lattice ce
 falls in (a floor) and the coordinate of each octave (lacunarity^i times the point, with a
 float32 rounding at each product) are decided in that precision. One octave's gradients,
 fades and interpolation are float32 too, as Cycles' (half the memory traffic of float64, which
-is what bounds NumPy here); the fractal sums over octaves are float64. A point's
-octaves, the colour's offset copies and the distortion lookups are separate noise
-evaluations, each one pass over all the points.
+is what bounds NumPy here); the fractal sums over octaves are float64. Noise evaluations
+whose coordinates are known together (an fBm's octaves; the Noise node's colour channels and
+distortion lookups, engine/nodes/textures.py) go through as one batch of all their points, as
+NumPy's cost per call is large against a batch of a few thousand points.
 
 Shapes: every coordinate array has the same shape S (any, 0-d for constants); results are
 float64 of shape S.
