@@ -10,7 +10,8 @@ Each root is a checkout of Ember, loaded under its own package name; all trace a
 bpy), the root's film items in this process, in alternating order (A, B, B, A, ...) so that the machine's load
 falls on all alike. Reports CPU time (time.process_time) per path, per ray, the share of
 it in bounces with fewer than --narrow live paths (the tail), and whether the images are
-bit for bit the same; ratios are medians of per-round ratios to the first root.
+bit for bit the same; ratios are medians of per-round ratios to the first root, and the ratio
+of the fastest rounds (what the code costs with the least interference from a loaded machine).
 """
 from __future__ import annotations
 
@@ -121,7 +122,8 @@ def main(argv=None):
     for i, v in enumerate(versions):
         a = np.array(rows[i])
         print(f"{v.spec}: median {np.median(a[:, 0]):.3f} us/path, {np.median(a[:, 1]):.4f} us/ray, tail "
-              f"{100 * np.median(a[:, 2]):.2f} %, ratio to the first {np.median(a[:, 0] / base[:, 0]):.4f}")
+              f"{100 * np.median(a[:, 2]):.2f} %, ratio to the first {np.median(a[:, 0] / base[:, 0]):.4f}; "
+              f"fastest round {np.min(a[:, 0]):.3f} us/path, ratio of the fastest {np.min(a[:, 0]) / np.min(base[:, 0]):.4f}")
     return 0
 
 

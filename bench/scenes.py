@@ -63,6 +63,8 @@ SCENES = (
                note="Cornell box 1e4 m from the origin"),
     BenchScene("hard_grazing", "hard_grazing.blend", "scenes/build_bench.py",
                note="camera 25 cm above a checkerboard, 4 degrees down"),
+    BenchScene("procedural", "procedural.blend", "scenes/build_procedural.py", ref_samples=1024,
+               note="five procedural materials of 27-33 nodes (noise, Voronoi, ramps, bump) under an HDRI"),
 )
 
 

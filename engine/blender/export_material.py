@@ -43,7 +43,7 @@ from ..scene import (EXT_CLIP, EXT_EXTEND, EXT_MIRROR, EXT_REPEAT, FRESNEL_DIELE
                      MAT_NODES, MAT_PHONG, TEX_ALPHA, TEX_COLOR, Materials)
 from ..nodes.bump import bump_from_displacement
 from ..nodes.hits import provides
-from ..nodes.material import compile_material, with_phong
+from ..nodes.material import compiled_material, with_phong
 from ..textures import LUMINANCE
 from .export_nodes import export_graph
 
@@ -586,7 +586,7 @@ def _node_row(mat, out, phong: bool, warn) -> dict | None:
     if phong:
         graph = with_phong(graph)
     try:
-        compiled = compile_material(graph)
+        compiled = compiled_material(graph)  # shared with earlier exports of the same graph
     except (ValueError, KeyError, TypeError, IndexError) as exc:
         notes.append(f"node graph not evaluated ({exc})")
         compiled = None
@@ -601,7 +601,7 @@ def _node_row(mat, out, phong: bool, warn) -> dict | None:
         warn(f"Material '{mat.name}': approximated " + "; ".join(notes) + ".")
     base = next((lobe.get("color") for lobe in compiled.lobes if lobe["kind"] == LOBE_DIFFUSE), (0.0, 0.0, 0.0))
     row = dict(kind=MAT_NODES, base_color=tuple(base), emission=tuple(compiled.emission_mean), name=mat.name,
-               lobes=compiled.lobes, graph=None if compiled.constant else graph)
+               lobes=[dict(lobe) for lobe in compiled.lobes], graph=None if compiled.constant else graph)
     if not compiled.constant:
         row["reads"] = compiled.reads
     if not compiled.lobes:

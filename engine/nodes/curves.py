@@ -31,6 +31,8 @@ def ramp_lookup(table, f, interpolate: bool = True, extrapolate: bool = False):
     pad = (slice(None),) * f.ndim + (None,) * (table.ndim - 1)  # f's axes, then a row's
     x = np.clip(np.nan_to_num(f, nan=0.0), 0.0, 1.0) * (size - 1)
     i = np.clip(np.trunc(x), 0, size - 1).astype(np.int64)
+    if f.ndim == 1 and table.ndim == 2 and not extrapolate:  # per point, rows of channels
+        return _lookup_columns(table, i, x - i, interpolate)
     t = (x - i)[pad]
     out = table[i]
     if interpolate:
@@ -39,6 +41,22 @@ def ramp_lookup(table, f, interpolate: bool = True, extrapolate: bool = False):
         low = table[0] + (table[0] - table[1]) * (-f)[pad] * (size - 1)
         high = table[-1] + (table[-1] - table[-2]) * (f - 1.0)[pad] * (size - 1)
         out = np.where((f < 0.0)[pad], low, np.where((f > 1.0)[pad], high, out))
+    return out
+
+
+def _lookup_columns(table, i, t, interpolate: bool):
+    """ramp_lookup's rows (N, C) at entries i (N,) and fractions t (N,): one channel at a time,
+    each gathered from its own contiguous column (a gather of short rows is several times
+    slower in NumPy), the same values."""
+    i1 = np.minimum(i + 1, len(table) - 1) if interpolate else None
+    up = t > 0.0
+    out = np.empty((len(i), table.shape[1]))
+    for c in range(table.shape[1]):
+        column_ = np.ascontiguousarray(table[:, c])
+        value = column_.take(i)
+        if interpolate:
+            value = np.where(up, (1.0 - t) * value + t * column_.take(i1), value)
+        out[:, c] = value
     return out
 
 

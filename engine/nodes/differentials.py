@@ -124,7 +124,11 @@ class OffsetState:
     def _steps(self):
         """(du, dv) of the move: the barycentric differentials along the axis times the width."""
         if "steps" not in self._moved:
-            du, dv = barycentric_differentials(self.base)[self.axis]
+            # Both axes come from one solve: the other axis' offset state reuses it.
+            both = self.base.__dict__.get("_barycentric_differentials")
+            if both is None:
+                both = self.base.__dict__["_barycentric_differentials"] = barycentric_differentials(self.base)
+            du, dv = both[self.axis]
             self._moved["steps"] = (du * self.width, dv * self.width)
         return self._moved["steps"]
 

@@ -148,6 +148,7 @@ def hash_float_to_float2(*k) -> tuple:
 
 # int32-typed, so 0-d keys stay int32 too (a Python int would widen them to int64).
 _INV_2_31 = 2.0 ** -31
+INT_UNIT = _INV_2_31  # (float)h / 2^31 of a 31-bit hash is its float32 rounding times this
 _LCG_MUL = np.int32(1664525)
 _LCG_ADD = np.int32(1013904223)
 _SHIFT = np.int32(16)
@@ -158,10 +159,25 @@ def _i32(x) -> np.ndarray:
     return np.asarray(x).astype(np.int32)
 
 
-def hash_pcg2d_i(x, y):
+def lcg(x) -> np.ndarray:
+    """The PCG hashes' first step on an int32 key, x * 1664525 + 1013904223 (wrapping). It is
+    affine, so the step of key + k is lcg(key) + lcg_step(k): a lattice's neighbours share it."""
     with np.errstate(over="ignore"):
-        x = _i32(x) * _LCG_MUL + _LCG_ADD
-        y = _i32(y) * _LCG_MUL + _LCG_ADD
+        return _i32(x) * _LCG_MUL + _LCG_ADD
+
+
+def lcg_step(k: int) -> np.int32:
+    """k * 1664525 as a wrapped int32: what lcg() adds for a key k larger."""
+    return np.int32(((k * int(_LCG_MUL)) + (1 << 31)) % (1 << 32) - (1 << 31))
+
+
+def hash_pcg2d_i(x, y):
+    return pcg2d_after_lcg(lcg(x), lcg(y))
+
+
+def pcg2d_after_lcg(x, y):
+    """hash_pcg2d_i of keys whose lcg() is x, y."""
+    with np.errstate(over="ignore"):
         x = x + y * _LCG_MUL
         y = y + x * _LCG_MUL
         x, y = x ^ (x >> _SHIFT), y ^ (y >> _SHIFT)
@@ -171,8 +187,12 @@ def hash_pcg2d_i(x, y):
 
 
 def hash_pcg3d_i(x, y, z):
+    return pcg3d_after_lcg(lcg(x), lcg(y), lcg(z))
+
+
+def pcg3d_after_lcg(x, y, z):
+    """hash_pcg3d_i of keys whose lcg() is x, y, z."""
     with np.errstate(over="ignore"):
-        x, y, z = (_i32(v) * _LCG_MUL + _LCG_ADD for v in (x, y, z))
         x = x + y * z
         y = y + z * x
         z = z + x * y
@@ -184,8 +204,12 @@ def hash_pcg3d_i(x, y, z):
 
 
 def hash_pcg4d_i(x, y, z, w):
+    return pcg4d_after_lcg(lcg(x), lcg(y), lcg(z), lcg(w))
+
+
+def pcg4d_after_lcg(x, y, z, w):
+    """hash_pcg4d_i of keys whose lcg() is x, y, z, w."""
     with np.errstate(over="ignore"):
-        x, y, z, w = (_i32(v) * _LCG_MUL + _LCG_ADD for v in (x, y, z, w))
         x = x + y * w
         y = y + z * x
         z = z + x * y

@@ -227,7 +227,7 @@ class MaterialPrograms:
     and their values at a batch of shading points for the closure."""
 
     def __init__(self, materials):
-        self.compiled = {m: compile_material(g) for m, g in enumerate(materials.graphs) if g is not None}
+        self.compiled = {m: compiled_material(g) for m, g in enumerate(materials.graphs) if g is not None}
         self.has = np.zeros(len(materials.kind), bool)
         self.has[list(self.compiled)] = True
         # Materials whose emitted radiance varies over the surface (evaluated where it is found).
@@ -299,6 +299,32 @@ class MaterialPrograms:
 
 
 _COMPILED: dict = {}  # digest of a material table -> its MaterialPrograms (the last few)
+_GRAPHS: dict = {}  # a material's graph -> its MaterialProgram (the last GRAPHS_KEPT)
+GRAPHS_KEPT = 256
+
+
+def compiled_material(graph: Graph) -> MaterialProgram:
+    """compile_material(graph), once per process for equal graphs: a viewport edit of one
+    material, or another render of the scene, compiles only the graphs that changed. Graphs of
+    plain values only: one holding an image's texels (compared by identity, new at every
+    export) would never be found again and would keep the texels alive."""
+    if not all(_plain(value) for node in graph.nodes for _, value in node.props):
+        return compile_material(graph)
+    try:
+        known = _GRAPHS.get(graph)
+    except TypeError:  # an unhashable socket value
+        return compile_material(graph)
+    if known is None:
+        if len(_GRAPHS) >= GRAPHS_KEPT:
+            _GRAPHS.pop(next(iter(_GRAPHS)))
+        known = _GRAPHS[graph] = compile_material(graph)
+    return known
+
+
+def _plain(value) -> bool:
+    if isinstance(value, tuple):
+        return all(_plain(v) for v in value)
+    return value is None or isinstance(value, (str, int, float, bool))
 
 
 class SurfaceEmission:

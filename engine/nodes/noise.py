@@ -3,10 +3,12 @@
 
 Coordinates are float32 arrays: Cycles computes in float32, and which lattice cell a point
 falls in (a floor) and the coordinate of each octave (lacunarity^i times the point, with a
-float32 rounding at each product) are decided in that precision; the gradients, fades and
-sums after the floor are continuous in the coordinate and computed in float64. A point's
-octaves, the colour's offset copies and the distortion lookups are separate noise
-evaluations, each one pass over all the points.
+float32 rounding at each product) are decided in that precision. One octave's gradients,
+fades and interpolation are float32 too, as Cycles' (half the memory traffic of float64, which
+is what bounds NumPy here); the fractal sums over octaves are float64. Noise evaluations
+whose coordinates are known together (an fBm's octaves; the Noise node's colour channels and
+distortion lookups, engine/nodes/textures.py) go through as one batch of all their points, as
+NumPy's cost per call is large against a batch of a few thousand points.
 
 Shapes: every coordinate array has the same shape S (any, 0-d for constants); results are
 float64 of shape S.
@@ -54,17 +56,18 @@ def _gradient_tables():
 def _lattice(d: int, g: np.ndarray) -> dict:
     """What perlin() looks up for dimension d: per axis, the gradient coefficient of each hash
     value (its low bits, `mask`), contiguous for np.take."""
-    return {"gradient": tuple(np.ascontiguousarray(g[:, k]) for k in range(d)), "mask": np.uint32(len(g) - 1)}
+    return {"gradient": tuple(np.ascontiguousarray(g[:, k], F32) for k in range(d)), "mask": np.uint32(len(g) - 1)}
 
 
 _LATTICE = {d: _lattice(d, g) for d, g in _gradient_tables().items()}
-# Points per chunk: 2^15 corner values (2^d per point) keep a chunk's arrays in cache.
-CORNERS = 1 << 15
+# Points per chunk: 2^17 corner values (2^d per point). Each chunk pays some forty NumPy calls
+# whatever its size, and larger chunks than this fall out of the cache.
+CORNERS = 1 << 17
 
 
 def fade(t):
     """Perlin's quintic fade 6t^5 - 15t^4 + 10t^3 (svm/noise.h fade)."""
-    return t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
+    return t * t * t * (t * (t * F32(6.0) - F32(15.0)) + F32(10.0))
 
 
 class _Workspace:
@@ -76,15 +79,15 @@ class _Workspace:
         m = n << d
         self.u32 = [np.empty(m, np.uint32) for _ in range(5)]  # a, b, c and two scratch
         self.index = np.empty(m, np.intp)
-        self.f64 = [np.empty(m) for _ in range(2)]  # the gradients, a term
+        self.flt = [np.empty(m, F32) for _ in range(2)]  # the gradients, a term
 
     def arrays(self, n: int, d: int):
-        """(uint32 a, b, c, scratch, scratch), intp index, (float64 gradients, term), each
+        """(uint32 a, b, c, scratch, scratch), intp index, (float32 gradients, term), each
         shaped (2^d, n)."""
         m = n << d
         shape = (1 << d, n)
         return ([u[:m].reshape(shape) for u in self.u32], self.index[:m].reshape(shape),
-                [f[:m].reshape(shape) for f in self.f64])
+                [f[:m].reshape(shape) for f in self.flt])
 
 
 _LOCAL = threading.local()
@@ -107,7 +110,7 @@ def _side(d: int, k: int, bit: int) -> tuple:
 
 def perlin(coords, work: _Workspace | None = None) -> np.ndarray:
     """Perlin noise (perlin_1d .. perlin_4d) at float32 coordinates `coords` (1 to 4 arrays of
-    one shape S), unscaled, float64 of shape S. All 2^d corners are hashed in one lookup3 pass
+    one shape S), unscaled, float32 of shape S. All 2^d corners are hashed in one lookup3 pass
     over arrays (2^d, n) in `work`'s memory (where `work` is given, the result is a view
     into it, valid until its next use).
     Per axis a corner's key and offset take one of two values (cell or cell + 1, f or f - 1),
@@ -124,7 +127,7 @@ def perlin(coords, work: _Workspace | None = None) -> np.ndarray:
     cells, fracs = [], []
     for x in coords:
         cell = np.floor(x)
-        fracs.append((x - cell).astype(np.float64))  # exact: x and floor(x) share their leading bits
+        fracs.append(x - cell)  # exact: x and floor(x) share their leading bits
         cells.append(cell.astype(np.int32).view(np.uint32))
     seed = hash_seed(d)
     with np.errstate(over="ignore"):
@@ -152,7 +155,7 @@ def perlin(coords, work: _Workspace | None = None) -> np.ndarray:
         np.take(lattice["gradient"][k], index, mode="wrap", out=into)
         v = into.reshape(corners)
         v[_side(d, k, 0)] *= fracs[k]
-        v[_side(d, k, 1)] *= fracs[k] - 1.0
+        v[_side(d, k, 1)] *= fracs[k] - F32(1.0)
         if k:
             g += term
     # Multilinear interpolation, x first, as Cycles' bi_mix / tri_mix / quad_mix.
@@ -223,25 +226,41 @@ def _fold(mask, new, old) -> tuple:
     return tuple(_where(mask, n, o) for n, o in zip(new, old))
 
 
+def snoise_sets(sets) -> list:
+    """[snoise(coords) for coords in sets] (each a tuple of (N,) arrays), in one call over all
+    their points: the NumPy calls of a noise evaluation cost as much for a thousand points as
+    for a few times more, and a batch's octaves are such sets. Every point's value is the one
+    its own call gives (a point's noise does not depend on the others)."""
+    if len(sets) == 1 or any(np.ndim(x) != 1 for coords in sets for x in coords):
+        return [snoise(coords) for coords in sets]
+    return np.split(snoise(tuple(np.concatenate(axis) for axis in zip(*sets))), len(sets))
+
+
 def fbm(coords, detail, roughness, lacunarity, normalize: bool):
     """Fractal Brownian motion (noise_fbm): octaves of snoise at lacunarity^i times the point,
     weighted roughness^i; a fractional detail blends in one more octave; normalised to [0, 1]
-    by the sum of weights when asked."""
+    by the sum of weights when asked. The octaves' coordinates do not depend on the noise, so
+    all octaves are evaluated in one snoise call."""
     whole, top, rmd = _octaves(detail)
     lac = np.asarray(lacunarity).astype(F32)
     fscale = F32(1.0) * np.ones_like(lac)
+    sets = []
+    for i in range(top + 1):
+        sets.append(scaled(coords, fscale))
+        fscale = _where(i <= whole, fscale * lac, fscale)
+    fractional = bool(np.any(rmd != 0.0))
+    noises = snoise_sets(sets + [scaled(coords, fscale)] if fractional else sets)
     amp, maxamp, total = 1.0, 0.0, 0.0
     for i in range(top + 1):
-        t = snoise(scaled(coords, fscale))
+        t = noises[i]
         on = i <= whole
         total = _where(on, total + t * amp, total)
         maxamp = _where(on, maxamp + amp, maxamp)
         amp = _where(on, amp * roughness, amp)
-        fscale = _where(on, fscale * lac, fscale)
     plain = 0.5 * total / maxamp + 0.5 if normalize else total
-    if not np.any(rmd != 0.0):
+    if not fractional:
         return plain + np.zeros(np.shape(coords[0]))
-    t = snoise(scaled(coords, fscale))
+    t = noises[top + 1]
     total2 = total + t * amp
     if normalize:
         blend = plain + rmd * (0.5 * total2 / (maxamp + amp) + 0.5 - plain)

@@ -84,16 +84,42 @@ def noise_texture(node, inputs, state):
     coords = _broadcast(tuple(f32(c) * scale for c in coords), detail, roughness, lacunarity, offset_, gain, distortion)
     seeds = _SEEDS[dimensions]
     if np.any(distortion != 0.0):
-        coords = tuple(c + (snoise(offset(coords, seeds[k])) * distortion).astype(F32)
-                       for k, c in enumerate(coords))
+        shifts = _together(snoise, [offset(coords, seeds[k]) for k in range(len(coords))], ())
+        coords = tuple(c + (n * distortion).astype(F32) for c, n in zip(coords, shifts))
+    params = (detail, roughness, lacunarity, offset_, gain)
 
-    def channel(shift):
-        p = coords if shift is None else offset(coords, shift)
-        return fractal(kind, p, detail, roughness, lacunarity, offset_, gain, normalize)
+    def channels(shifts):
+        sets = [coords if shift is None else offset(coords, shift) for shift in shifts]
+        return _together(lambda p, *q: fractal(kind, p, *q, normalize), sets, params)
 
-    fac = _memo(lambda: channel(None))
-    return {"Fac": fac,
-            "Color": lambda: stack(fac(), channel(seeds[dimensions]), channel(seeds[dimensions + 1]))}
+    known = []  # Fac, once computed (alone, or with the colour's other channels)
+    colour_seeds = (seeds[dimensions], seeds[dimensions + 1])
+
+    def fac():
+        if not known:
+            known.append(channels([None])[0])
+        return known[0]
+
+    def color():
+        if known:
+            return stack(known[0], *channels(colour_seeds))
+        first, green, blue = channels((None,) + colour_seeds)
+        known.append(first)
+        return stack(first, green, blue)
+
+    return {"Fac": fac, "Color": color}
+
+
+def _together(fn, sets, params):
+    """[fn(coords, *params) for coords in sets], in one call over all the sets' points: the
+    NumPy calls of a noise evaluation cost as much for a batch of a thousand points as for
+    three, and a Noise node's channels and distortion lookups are such batches. Per-point
+    params are repeated for each set; every point's value is what its own call gives."""
+    if len(sets) == 1 or np.ndim(sets[0][0]) != 1:
+        return [fn(coords, *params) for coords in sets]
+    joined = tuple(np.concatenate(axis) for axis in zip(*sets))
+    tiled = tuple(np.tile(p, len(sets)) if np.ndim(p) == 1 else p for p in params)
+    return np.split(fn(joined, *tiled), len(sets))
 
 
 # --- White Noise ----------------------------------------------------------------------------

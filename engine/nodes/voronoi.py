@@ -28,10 +28,11 @@ from . import texture_mapping
 from .base import node, scalar, stack, triple
 
 FLT_MAX = float(np.finfo(np.float32).max)
-CHUNK = 8192  # points per pass: a few dozen float64 arrays of this size stay in cache
+CHUNK = 32768  # points per pass: fewer passes pay less per-call overhead; larger ones leave the cache
 
 _POINT_HASH = {2: H.hash_int2_to_float2, 3: H.hash_int3_to_float3, 4: H.hash_int4_to_float4}
 _COLOR_HASH = {2: H.hash_int2_to_float3, 3: H.hash_int3_to_float3, 4: H.hash_int4_to_float3}
+_AFTER_LCG = {2: H.pcg2d_after_lcg, 3: H.pcg3d_after_lcg, 4: H.pcg4d_after_lcg}
 
 
 def _f32(x) -> np.ndarray:
@@ -67,6 +68,8 @@ class Lattice:
         # 1D hashes the float32 cell position, 2D to 4D the integer cell.
         self._type = np.float32 if self.d == 1 else np.int32
         self._key = tuple(k.astype(self._type) for k in cells)
+        # The PCG hash's first step of the point's own cell: a neighbour's adds a constant.
+        self._lcg = None if self.d == 1 else tuple(H.lcg(k) for k in self._key)
 
     def key(self, offset=None):
         """The key of the cell at `offset` (ints, or per-point int arrays) from the point's
@@ -81,6 +84,18 @@ class Lattice:
         if self.d == 1:
             return (H.hash_float(key[0]),)
         return _POINT_HASH[self.d](*key)
+
+    def feature(self, offset, randomness):
+        """The feature point of the cell at `offset` (ints), relative to the point's cell: as
+        point(), from the cell's hash started at the shared first step and the unit scale
+        folded into the randomness (a power of two: the same products)."""
+        if self.d == 1:
+            return self.point(offset, randomness)[0]
+        with np.errstate(over="ignore"):
+            start = tuple(s + H.lcg_step(o) for s, o in zip(self._lcg, offset))
+        h = _AFTER_LCG[self.d](*start)
+        unit = randomness * H.INT_UNIT
+        return tuple(o + np.multiply(hc.astype(np.float32), unit, dtype=np.float64) for o, hc in zip(offset, h))
 
     def point(self, offset, randomness, key=None):
         """The feature point of the cell at `offset`, relative to the point's cell, and its hash."""
@@ -132,7 +147,7 @@ def voronoi_f1(lat: Lattice, p):
     table = offsets(1, lat.d)
     best, winner = FLT_MAX, 0
     for n, off in enumerate(table):
-        point, _ = lat.point(off, p.randomness)
+        point = lat.feature(off, p.randomness)
         b = distance_bound(_sub(point, lat.local), p.metric, p.exponent)
         closer = b < best
         best, winner = np.where(closer, b, best), np.where(closer, n, winner)
@@ -149,7 +164,7 @@ def voronoi_f2(lat: Lattice, p):
     d1 = d2 = FLT_MAX
     n1 = n2 = table.index((0,) * lat.d)  # Cycles starts both at the zero offset
     for n, off in enumerate(table):
-        point, _ = lat.point(off, p.randomness)
+        point = lat.feature(off, p.randomness)
         dist = distance(_sub(point, lat.local), p.metric, p.exponent)
         first = dist < d1
         second = ~first & (dist < d2)
