@@ -32,9 +32,10 @@ from ember.engine.bsdf import multiscatter as ms  # noqa: E402
 
 
 def _cycles_tables():
-    """Cycles' ggx_E (32, 32), ggx_Eavg (32,), ggx_glass_E and ggx_glass_Eavg (eta > 1) from
-    the bpy binary, or None: Eavg is found as 32 floats starting at 1.0 that match Ember's
-    within 3e-3 at three places, the others at their offsets next to it."""
+    """Cycles' ggx_E (32, 32), ggx_Eavg (32,), ggx_glass_E and ggx_glass_Eavg (eta > 1 and
+    their inverse tables stacked) from the bpy binary, or None: Eavg is found as 32 floats
+    starting at 1.0 that match Ember's within 3e-3 at three places, the others at their
+    offsets next to it."""
     path = next((pathlib.Path(p) / "bpy" / "__init__.so" for p in sys.path
                  if (pathlib.Path(p) / "bpy" / "__init__.so").is_file()), None)
     if path is None:
@@ -47,9 +48,10 @@ def _cycles_tables():
             if c + 1056 <= len(a) and all(abs(a[c + i] - t["E_avg"][i]) < 3e-3 for i in (5, 20, 31)):
                 E = a[c + 32:c + 1056].reshape(32, 32)
                 if np.abs(E - t["E"]).max() < 0.01:
-                    return dict(E_avg=a[c:c + 32].astype(np.float64), E=E.astype(np.float64),
-                                glass_E=a[c - 4096:c].reshape(16, 16, 16).astype(np.float64),
-                                glass_E_avg=a[c - 4352:c - 4096].reshape(16, 16).astype(np.float64))
+                    f = lambda lo, hi, *shape: a[c + lo:c + hi].reshape(shape).astype(np.float64)
+                    return dict(E_avg=f(0, 32, 32), E=f(32, 1056, 32, 32),
+                                glass_E=np.stack([f(-4096, 0, 16, 16, 16), f(-8448, -4352, 16, 16, 16)]),
+                                glass_E_avg=np.stack([f(-4352, -4096, 16, 16), f(-8704, -8448, 16, 16)]))
     return None
 
 
@@ -63,8 +65,8 @@ def tables():
         lines.append("Cycles' tables not found in the bpy binary.")
     else:
         lines += ["| table | nodes | max abs diff | mean abs diff |", "|---|---|---|---|"]
-        for name, ours in (("E", t["E"]), ("E_avg", t["E_avg"]), ("glass_E", t["glass_E"][0]),
-                           ("glass_E_avg", t["glass_E_avg"][0])):
+        for name, ours in (("E", t["E"]), ("E_avg", t["E_avg"]), ("glass_E", t["glass_E"]),
+                           ("glass_E_avg", t["glass_E_avg"])):
             d = np.abs(ours - c[name])
             lines.append(f"| {name} | {d.size} | {d.max():.4f} | {d.mean():.5f} |")
         lines.append("")
@@ -81,7 +83,7 @@ def tables():
     return lines
 
 
-def furnace(runs):
+def furnace(runs, cycles_samples=64, ember_samples=32):
     import bpy
     import ember
     import test_multiscatter as T
@@ -92,8 +94,8 @@ def furnace(runs):
         results = {}
         for dist in ("MULTI_GGX", "GGX"):
             sc = T._furnace_scene(bpy, dist)
-            cycles = T._cycles_furnace(bpy, sc, 64)
-            emb = T._ember_furnace(bpy, 32)
+            cycles = T._cycles_furnace(bpy, sc, cycles_samples)
+            emb = T._ember_furnace(bpy, ember_samples)
             results[dist] = (cycles, emb)
         # Ember as before (Multiscatter rendered as GGX) against Cycles' Multiscatter.
         results["before"] = (results["MULTI_GGX"][0], results["GGX"][1])
@@ -117,10 +119,11 @@ def furnace(runs):
     return lines
 
 
-def table_top(runs):
+def table_top(runs, cycles_samples=64, ember_samples=32):
     import bpy
     import ember
     import test_multiscatter as T
+    T.RUNS = runs
     ember.register()
     try:
         out = {}
@@ -140,7 +143,7 @@ def table_top(runs):
                               **{"Base Color": (0.35, 0.2, 0.1, 1.0)})
             bpy.ops.mesh.primitive_plane_add(size=40.0)
             bpy.context.active_object.data.materials.append(mat)
-            out[dist] = (T._cycles_furnace(bpy, sc, 64), T._ember_furnace(bpy, 32))
+            out[dist] = (T._cycles_furnace(bpy, sc, cycles_samples), T._ember_furnace(bpy, ember_samples))
     finally:
         ember.unregister()
     cycles = out["MULTI_GGX"][0].mean(axis=(1, 2, 3))
@@ -159,10 +162,13 @@ def main():
     ap.add_argument("--part", choices=("tables", "furnace", "table_top"), nargs="*",
                     default=["tables", "furnace", "table_top"])
     ap.add_argument("--runs", type=int, default=4)
+    ap.add_argument("--cycles-samples", type=int, default=64)
+    ap.add_argument("--ember-samples", type=int, default=32)
     args = ap.parse_args()
     for part in args.part:
-        lines = {"tables": tables, "furnace": lambda: furnace(args.runs),
-                 "table_top": lambda: table_top(args.runs)}[part]()
+        spp = (args.cycles_samples, args.ember_samples)
+        lines = {"tables": tables, "furnace": lambda: furnace(args.runs, *spp),
+                 "table_top": lambda: table_top(args.runs, *spp)}[part]()
         print("\n".join(lines) + "\n", flush=True)
 
 

@@ -17,7 +17,10 @@ E (1 + Fms (1 - E) / E), Cycles' `darkening` of the closure weight.
 Glass (reflection + refraction) uses the same factor with its own E(r, mu, eta) and
 E_avg(r, eta): the albedo of Cycles' GGX glass with the exact dielectric Fresnel and no
 eta^2 radiance scaling, one table for eta > 1 and one (the "inverse") for 1 / eta, eta the IOR
-relative to wo's side; its Fss is the refraction tint.
+relative to wo's side; its Fss is the refraction tint. Cycles' inverse tables count refracted
+light the lobe drops (it leaves on wo's side: `_glass_albedo`), so glass seen from inside
+near grazing gets less compensation than would conserve energy; ours are made the same way,
+or Ember's rough glass would be brighter than Cycles'.
 
 Tables: ours, computed with Ember's own GGX (`tabulate`, stratified visible-normal sampling,
 the reflect / refract branch taken in expectation), on Cycles' grids and axes
@@ -65,7 +68,10 @@ def _reflection_albedo(rough: np.ndarray, mu: np.ndarray, u: np.ndarray) -> np.n
 
 def _glass_albedo(rough: np.ndarray, mu: np.ndarray, eta: np.ndarray, u: np.ndarray) -> np.ndarray:
     """E (C,) of Cycles' GGX glass (F reflects, 1 - F refracts, both of weight G2 / G1(wo),
-    no radiance scaling) for C cells (roughness, mu, eta relative to wo's side)."""
+    no radiance scaling) for C cells (roughness, mu, eta relative to wo's side), counted as
+    Cycles' tables count it: a reflection under the surface is lost, a refraction counts on
+    whichever side it leaves (which matters only for eta < 1, where one bent away from the
+    microfacet normal can leave above the surface; the lobe itself drops it)."""
     C, S = len(rough), len(u)
     alpha = np.repeat(rough * rough, S)
     e = np.repeat(eta, S)
@@ -79,7 +85,7 @@ def _glass_albedo(rough: np.ndarray, mu: np.ndarray, eta: np.ndarray, u: np.ndar
     wt = -inv[:, None] * wo + (inv * cos_oh + cos_t)[:, None] * h
     ok = cos_oh > 0.0
     r = np.where(ok & (wr[:, 2] > 0.0), F * microfacet.G2(alpha, wo, wr) / g1, 0.0)
-    t = np.where(ok & (wt[:, 2] < 0.0) & (F < 1.0), (1.0 - F) * microfacet.G2(alpha, wo, wt) / g1, 0.0)
+    t = np.where(ok & (F < 1.0), (1.0 - F) * microfacet.G2(alpha, wo, wt) / g1, 0.0)
     E = (r + t).reshape(C, S).mean(axis=1)
     # Cycles samples a smooth or index-matched interface as a Dirac of weight 1.
     delta = microfacet.is_delta(rough * rough) | (np.abs(eta - 1.0) < 1e-4)
