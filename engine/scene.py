@@ -42,7 +42,8 @@ FRESNEL_DIELECTRIC = 2  # exact Fresnel of ior remapped to F0 = F0(ior) tint .. 
 # Microfacet distribution of LOBE_MICROFACET and LOBE_DIELECTRIC (the nodes' `distribution`).
 DIST_GGX = 0  # single-scattering GGX
 DIST_MULTI_GGX = 1  # GGX with Cycles' energy compensation (engine/bsdf/multiscatter.py)
-DISTRIBUTIONS = {"GGX": DIST_GGX, "MULTI_GGX": DIST_MULTI_GGX}
+DIST_BECKMANN = 2  # Beckmann (engine/bsdf/beckmann.py): microfacet lobes only
+DISTRIBUTIONS = {"GGX": DIST_GGX, "MULTI_GGX": DIST_MULTI_GGX, "BECKMANN": DIST_BECKMANN}
 
 # Image texture lookups (Cycles' Image Texture node).
 EXT_REPEAT, EXT_EXTEND, EXT_CLIP, EXT_MIRROR = 0, 1, 2, 3

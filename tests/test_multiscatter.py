@@ -12,14 +12,15 @@ reciprocity and its sigma = 0 limit (Lambert). The samplers' chi-square and the 
 in test_lobes.py (its multi_* and oren_nayar cases).
 With Blender (marked blender): the node setting reaches the lobes in both export paths, and a
 grid of spheres (gold metal, Principled plastic and glass at roughness 0.3 / 0.7 / 1.0, the
-default Multiscatter GGX, and an Oren-Nayar diffuse) in a white furnace renders as Cycles does.
+default Multiscatter GGX, an Oren-Nayar diffuse and a Beckmann metal) in a white furnace
+renders as Cycles does.
 """
 import numpy as np
 import pytest
 
-from ember.engine.bsdf import lobes, multiscatter as ms, oren_nayar
+from ember.engine.bsdf import beckmann, lobes, multiscatter as ms, oren_nayar
 from ember.engine.bsdf.lobes import inputs
-from ember.engine.scene import (DIST_GGX, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE,
+from ember.engine.scene import (DIST_BECKMANN, DIST_GGX, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE,
                                 LOBE_DIELECTRIC, LOBE_MICROFACET, LOBE_OREN_NAYAR, MAT_NODES, Materials)
 
 N = 200_000
@@ -131,6 +132,7 @@ MODELS = {
     "glass": dict(kind=LOBE_DIELECTRIC, color=(0.9, 0.7, 0.5), tint=(0.9, 0.7, 0.5), roughness=1.0, ior=1.5,
                   distribution=DIST_MULTI_GGX),
     "oren_nayar": dict(kind=LOBE_OREN_NAYAR, color=(0.9, 0.7, 0.5), roughness=1.0),
+    "beckmann": _glossy(0.6, DIST_BECKMANN),
 }
 
 
@@ -141,7 +143,7 @@ def test_albedo_is_at_most_one_and_at_least_single_scattering(name):
         for inside in ((False, True) if spec["kind"] == LOBE_DIELECTRIC else (False,)):
             a, se = directional_albedo(spec, theta, inside=inside)
             assert np.all(a <= 1.0 + 4 * se + 1e-3), (theta, inside, a)
-            if spec["kind"] != LOBE_OREN_NAYAR:
+            if spec["kind"] != LOBE_OREN_NAYAR and spec["distribution"] != DIST_BECKMANN:
                 single, _ = directional_albedo(dict(spec, distribution=DIST_GGX), theta, inside=inside)
                 assert np.all(a >= single - 1e-12)
 
@@ -181,6 +183,22 @@ def test_oren_nayar_is_reciprocal_and_lambert_when_smooth():
     back = oren_nayar.eval(np.ones((1, 3)), np.array([1.0]), np.array([[0.8, 0, 0.6]]), np.array([[0.8, 0, 0.6]]))
     fwd = oren_nayar.eval(np.ones((1, 3)), np.array([1.0]), np.array([[0.8, 0, 0.6]]), np.array([[-0.8, 0, 0.6]]))
     assert back[0, 0] > fwd[0, 0]
+
+
+@pytest.mark.parametrize("alpha", [0.05, 0.3, 1.0])
+def test_beckmann_normals_are_normalised_and_its_lambda_near_the_exact_one(alpha):
+    """int D(h) cos_h dh = 1 (quadrature in theta); Cycles' rational Lambda within 0.6 % of
+    G1's exact value 1 / (1 + (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi)))."""
+    import math
+    n = 200_000
+    theta = (np.arange(n) + 0.5) / n * (np.pi / 2)
+    h = np.stack([np.sin(theta), np.zeros(n), np.cos(theta)], -1)
+    integral = (beckmann.D(alpha, h) * np.cos(theta) * np.sin(theta)).sum() * (np.pi / 2 / n) * 2 * np.pi
+    assert integral == pytest.approx(1.0, abs=1e-4)
+    w = np.stack([np.sin(theta), np.zeros(n), np.cos(theta)], -1)[::1000]
+    a = 1.0 / (alpha * np.tan(theta[::1000]))
+    exact = np.array([1.0 / (1.0 + (math.erf(x) - 1) / 2 + math.exp(-x * x) / (2 * x * math.sqrt(math.pi))) for x in a])
+    np.testing.assert_allclose(1.0 / (1.0 + beckmann.Lambda(alpha, w)), exact, rtol=6e-3)
 
 
 def test_multiscatter_is_a_factor_of_wo_alone():
@@ -258,8 +276,9 @@ def _noise_on(bpy, mat, socket):
 @pytest.mark.parametrize("path", ["converter", "nodes"])
 def test_the_distribution_and_diffuse_roughness_reach_the_lobes(path):
     """Blender's defaults (Multiscatter GGX) and GGX set by hand, on Glossy, Metallic, Glass and
-    the Principled's metallic, transmission and specular lobes; Diffuse and Principled diffuse
-    roughness: Oren-Nayar, Lambert at 0."""
+    the Principled's metallic, transmission and specular lobes; Beckmann on Glossy and Metallic
+    (glass and Ashikhmin-Shirley: GGX); Diffuse and Principled diffuse roughness: Oren-Nayar,
+    Lambert at 0."""
     bpy = _bpy()
     import ember
     from ember.engine import scene as S
@@ -276,10 +295,14 @@ def test_the_distribution_and_diffuse_roughness_reach_the_lobes(path):
             _material(bpy, "principled_ggx", "ShaderNodeBsdfPrincipled", distribution="GGX"),
             _material(bpy, "rough_diffuse", "ShaderNodeBsdfDiffuse", Roughness=0.5),
             _material(bpy, "diffuse", "ShaderNodeBsdfDiffuse"),
+            _material(bpy, "glossy_beckmann", "ShaderNodeBsdfAnisotropic", distribution="BECKMANN"),
+            _material(bpy, "metal_beckmann", "ShaderNodeBsdfMetallic", distribution="BECKMANN"),
+            _material(bpy, "glass_beckmann", "ShaderNodeBsdfGlass", Roughness=0.4, distribution="BECKMANN"),
+            _material(bpy, "glossy_as", "ShaderNodeBsdfAnisotropic", distribution="ASHIKHMIN_SHIRLEY"),
         ]
         if path == "nodes":
             for mat, socket in zip(mats, ["Roughness", "Roughness", "Roughness", "Roughness", "Roughness",
-                                          "Roughness", "Roughness", "Color"]):
+                                          "Roughness", "Roughness", "Color"] + ["Roughness"] * 4):
                 _noise_on(bpy, mat, socket)
         m, rows = _export(bpy, *mats)
         multi, ggx = S.DIST_MULTI_GGX, S.DIST_GGX
@@ -298,26 +321,30 @@ def test_the_distribution_and_diffuse_roughness_reach_the_lobes(path):
         assert kinds("rough_diffuse") == [S.LOBE_OREN_NAYAR] and kinds("diffuse") == [S.LOBE_DIFFUSE]
         if path == "converter":
             assert m.lobe_roughness[rows["rough_diffuse"][0]] == pytest.approx(0.5)
+        # Beckmann on the reflection lobes; glass and Ashikhmin-Shirley as GGX.
+        assert dists("glossy_beckmann") == dists("metal_beckmann") == [S.DIST_BECKMANN]
+        assert dists("glass_beckmann") == dists("glossy_as") == [ggx]
     finally:
         ember.unregister()
 
 
-SIZE_W, SIZE_H = 36, 48
 COLUMNS = ROUGHNESS
-ROWS = ("gold", "plastic", "glass", "oren_nayar")
+ROWS = ("gold", "plastic", "glass", "oren_nayar", "beckmann")
+SIZE_W, SIZE_H = 36, 12 * len(ROWS)  # 12 pixels per unit
 RUNS = 8
 CYCLES_SAMPLES, EMBER_SAMPLES = 256, 128  # per run
 
 
 def _furnace_scene(bpy, distribution="MULTI_GGX"):
     """Spheres of radius 0.4 on a 1-unit grid in the x-z plane (columns: roughness, rows: ROWS
-    from the top) under a white world of strength 1, seen by an orthographic camera from -y."""
+    from the top; the Beckmann row a copper Metallic BSDF) under a white world of strength 1,
+    seen by an orthographic camera from -y."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
     sc.render.resolution_x, sc.render.resolution_y = SIZE_W, SIZE_H
     sc.render.resolution_percentage = 100
     cam_data = bpy.data.cameras.new("Camera")
-    cam_data.type, cam_data.ortho_scale = "ORTHO", 4.0
+    cam_data.type, cam_data.ortho_scale = "ORTHO", float(len(ROWS))
     cam = bpy.data.objects.new("Camera", cam_data)
     cam.location, cam.rotation_euler = (0.0, -10.0, 0.0), (np.pi / 2, 0.0, 0.0)
     sc.collection.objects.link(cam)
@@ -335,23 +362,30 @@ def _furnace_scene(bpy, distribution="MULTI_GGX"):
                                 **{"Base Color": (0.05, 0.1, 0.3, 1.0)})
             elif what == "glass":
                 mat = _material(bpy, f"{what}{r}", "ShaderNodeBsdfGlass", Roughness=r, distribution=distribution)
-            else:
+            elif what == "oren_nayar":
                 mat = _material(bpy, f"{what}{r}", "ShaderNodeBsdfDiffuse", Roughness=r,
                                 Color=(0.5, 0.3, 0.2, 1.0))
+            else:
+                mat = _material(bpy, f"{what}{r}", "ShaderNodeBsdfMetallic", Roughness=r, distribution="BECKMANN",
+                                **{"Base Color": (0.95, 0.64, 0.54, 1.0)})
             bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=0.4,
-                                                 location=(col - 1.0, 0.0, 1.5 - row))
+                                                 location=(col - 1.0, 0.0, _row_z(row)))
             bpy.ops.object.shade_smooth()
             bpy.context.active_object.data.materials.append(mat)
     return sc
 
 
+def _row_z(row):
+    return (len(ROWS) - 1) / 2 - row
+
+
 def _masks():
     """{(row, column): (H, W) bool} pixels well inside each sphere's disc."""
-    px = 4.0 / SIZE_H  # world units per pixel (ortho scale spans the larger side)
+    px = len(ROWS) / SIZE_H  # world units per pixel (ortho scale spans the larger side)
     x = (np.arange(SIZE_W) + 0.5 - SIZE_W / 2) * px
     z = (SIZE_H / 2 - np.arange(SIZE_H) - 0.5) * px
     X, Z = np.meshgrid(x, z)
-    return {(i, j): (X - (j - 1.0)) ** 2 + (Z - (1.5 - i)) ** 2 < 0.32 ** 2
+    return {(i, j): (X - (j - 1.0)) ** 2 + (Z - _row_z(i)) ** 2 < 0.32 ** 2
             for i in range(len(ROWS)) for j in range(len(COLUMNS))}
 
 

@@ -73,14 +73,21 @@ def _linked_or_set(node, name: str, default: float) -> bool:
     return socket is not None and (socket.link is not None or float(np.max(socket.value)) != default)
 
 
-def _distribution_notes(node) -> list:
-    dist = node.prop("distribution", "GGX")
-    return [] if dist in ("GGX", "MULTI_GGX", "SHARP") else [f"{dist} distribution rendered as GGX"]
+_HAS_BECKMANN = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy", "ShaderNodeBsdfMetallic")
 
 
 def _distribution(node) -> str:
-    """The node's distribution as a lobe parameter: Multiscatter GGX or GGX (the others)."""
-    return "MULTI_GGX" if node.prop("distribution", "GGX") == "MULTI_GGX" else "GGX"
+    """The node's distribution as a lobe parameter: Multiscatter GGX, GGX, Beckmann on the
+    reflection lobes; GGX for the others."""
+    dist = node.prop("distribution", "GGX")
+    if dist == "MULTI_GGX" or (dist == "BECKMANN" and node.kind in _HAS_BECKMANN):
+        return dist
+    return "GGX"
+
+
+def _distribution_notes(node) -> list:
+    dist = node.prop("distribution", "GGX")
+    return [] if dist in ("SHARP", _distribution(node)) else [f"{dist} distribution rendered as GGX"]
 
 
 def _diffuse(weight, tag, color, roughness, **params) -> tuple:

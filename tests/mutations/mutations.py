@@ -657,4 +657,10 @@ MUTATIONS = [
          old="    f = color * (single[:, None] + multi)",
          new="    f = color * single[:, None]",
          tests=["tests/test_multiscatter.py"]),
+    dict(name="beckmann_no_masking",
+         note="Beckmann without masking-shadowing (Lambda = 0)",
+         file="engine/bsdf/beckmann.py",
+         old="    return np.where(s < 0.39, 0.0, lam)",
+         new="    return np.zeros(len(w))",
+         tests=["tests/test_multiscatter.py"]),
 ]

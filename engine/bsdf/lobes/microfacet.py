@@ -7,16 +7,17 @@ dielectric Fresnel of ior remapped to F0(ior) tint .. 1 (Principled specular).
 
 Rows of DIST_MULTI_GGX (Blender's default distribution) are scaled by Cycles' energy
 compensation (engine/bsdf/multiscatter.py) with the mean Fresnel Fss of their model, the factor
-of wo applied to eval, to mirror samples' weights and to the albedo estimates."""
+of wo applied to eval, to mirror samples' weights and to the albedo estimates. Rows of
+DIST_BECKMANN (Glossy and Metallic) use the Beckmann distribution (engine/bsdf/beckmann.py)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...scene import DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_MICROFACET, RAY_GLOSSY
+from ...scene import DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_MICROFACET, RAY_GLOSSY
 from ...vec import dot, normalize
-from .. import fresnel, layering, microfacet, multiscatter
+from .. import beckmann, fresnel, layering, microfacet, multiscatter
 from . import inputs
 from .base import CLASS_GLOSSY, LABEL_GLOSSY, LobeSample, SurfaceLobe, SurfaceParams, mean_albedo
 
@@ -26,7 +27,8 @@ _MIRROR_XY = np.array([-1.0, -1.0, 1.0])  # reflection about the normal
 @dataclass
 class MicrofacetParams(SurfaceParams):
     """tint (K,3); roughness (K,) Blender's; alpha (K,) GGX (roughness^2, or Filter Glossy's);
-    ior (K,); fresnel (K,) FRESNEL_*; multi (K,) bool: DIST_MULTI_GGX."""
+    ior (K,); fresnel (K,) FRESNEL_*; multi (K,) bool: DIST_MULTI_GGX; beckmann (K,) bool:
+    DIST_BECKMANN."""
 
     tint: np.ndarray
     roughness: np.ndarray
@@ -34,6 +36,7 @@ class MicrofacetParams(SurfaceParams):
     ior: np.ndarray
     fresnel: np.ndarray
     multi: np.ndarray
+    beckmann: np.ndarray
 
 
 def fresnel_color(p: MicrofacetParams, cos: np.ndarray) -> np.ndarray:
@@ -103,7 +106,8 @@ class Microfacet(SurfaceLobe):
         alpha = microfacet.alpha_from_roughness(roughness)
         return MicrofacetParams(color=color, delta=microfacet.is_delta(alpha), tint=inputs.tint(m, lobe, color, src),
                                 roughness=roughness, alpha=alpha, ior=inputs.ior(m, lobe, src), fresnel=m.lobe_fresnel[lobe],
-                                multi=m.lobe_distribution[lobe] == DIST_MULTI_GGX)
+                                multi=m.lobe_distribution[lobe] == DIST_MULTI_GGX,
+                                beckmann=m.lobe_distribution[lobe] == DIST_BECKMANN)
 
     def is_delta(self, p):
         return microfacet.is_delta(p.alpha)
@@ -121,15 +125,37 @@ class Microfacet(SurfaceLobe):
         r, scale, _ = energy(p, wo)
         if len(r):
             F[r] *= scale
-        return microfacet.eval_reflection(p.alpha, wo, wi, F), microfacet.pdf_reflection(p.alpha, wo, wi)
+        b = np.flatnonzero(p.beckmann)
+        if not len(b):
+            return microfacet.eval_reflection(p.alpha, wo, wi, F), microfacet.pdf_reflection(p.alpha, wo, wi)
+        f, pdf = np.empty((len(p), 3)), np.empty(len(p))
+        g = np.flatnonzero(~p.beckmann)
+        f[g] = microfacet.eval_reflection(p.alpha[g], wo[g], wi[g], F[g])
+        pdf[g] = microfacet.pdf_reflection(p.alpha[g], wo[g], wi[g])
+        f[b] = beckmann.eval_reflection(p.alpha[b], wo[b], wi[b], F[b])
+        pdf[b] = beckmann.pdf_reflection(p.alpha[b], wo[b], wi[b])
+        return f, pdf
 
     def pdf(self, p, wo, wi):
-        return microfacet.pdf_reflection(p.alpha, wo, wi)
+        b = np.flatnonzero(p.beckmann)
+        if not len(b):
+            return microfacet.pdf_reflection(p.alpha, wo, wi)
+        pdf = microfacet.pdf_reflection(p.alpha, wo, wi)
+        pdf[b] = beckmann.pdf_reflection(p.alpha[b], wo[b], wi[b])
+        return pdf
+
+    def _sample_rough(self, p, wo, u):
+        """(wi, pdf) of rows that are not delta."""
+        b = np.flatnonzero(p.beckmann)
+        wi, _, pdf = microfacet.sample_reflection(p.alpha, wo, u)
+        if len(b):
+            wi[b], _, pdf[b] = beckmann.sample_reflection(p.alpha[b], wo[b], u[b])
+        return wi, pdf
 
     def sample(self, p, wo, u, u_branch) -> LobeSample:
         delta = p.delta
         if not delta.any():
-            wi, _, pdf = microfacet.sample_reflection(p.alpha, wo, u)
+            wi, pdf = self._sample_rough(p, wo, u)
             return LobeSample(wi=wi, pdf=pdf, delta=delta, label=LABEL_GLOSSY)
         wi, weight, pdf = np.empty((len(p), 3)), np.zeros((len(p), 3)), np.ones(len(p))
         d, s = np.flatnonzero(delta), np.flatnonzero(~delta)
@@ -141,7 +167,7 @@ class Microfacet(SurfaceLobe):
         if len(r):
             weight[d[r]] *= scale
         if len(s):
-            wi[s], _, pdf[s] = microfacet.sample_reflection(p.alpha[s], wo[s], u[s])
+            wi[s], pdf[s] = self._sample_rough(p.take(s), wo[s], u[s])
         return LobeSample(wi=wi, pdf=pdf, delta=delta, label=LABEL_GLOSSY, weight=weight)
 
     def drop_caustics(self, p, reflection, refraction):
