@@ -111,11 +111,14 @@ def furnace(runs, cycles_samples=64, ember_samples=32):
             cells = [f"{ratios[i, j][0]:+.2%} ({ratios[i, j][1]:.2%})" for j in range(len(T.COLUMNS))]
             lines.append(f"| {row} | " + " | ".join(cells) + " |")
         lines.append("")
-    cyc = results["MULTI_GGX"][0].mean(axis=0)
-    lines += ["Cycles' sphere means (Multiscatter GGX):", "", header, "|---" * (len(T.COLUMNS) + 1) + "|"]
     masks = T._masks()
-    for i, row in enumerate(T.ROWS):
-        lines.append(f"| {row} | " + " | ".join(f"{cyc[masks[i, j]].mean():.4f}" for j in range(len(T.COLUMNS))) + " |")
+    for dist in ("MULTI_GGX", "GGX"):
+        cyc = results[dist][0].mean(axis=0)
+        lines += [f"Cycles' sphere means ({dist}):", "", header, "|---" * (len(T.COLUMNS) + 1) + "|"]
+        for i, row in enumerate(T.ROWS):
+            cells = [f"{cyc[masks[i, j]].mean():.4f}" for j in range(len(T.COLUMNS))]
+            lines.append(f"| {row} | " + " | ".join(cells) + " |")
+        lines.append("")
     return lines
 
 

@@ -43,7 +43,9 @@ FRESNEL_DIELECTRIC = 2  # exact Fresnel of ior remapped to F0 = F0(ior) tint .. 
 DIST_GGX = 0  # single-scattering GGX
 DIST_MULTI_GGX = 1  # GGX with Cycles' energy compensation (engine/bsdf/multiscatter.py)
 DIST_BECKMANN = 2  # Beckmann (engine/bsdf/beckmann.py): microfacet lobes only
-DISTRIBUTIONS = {"GGX": DIST_GGX, "MULTI_GGX": DIST_MULTI_GGX, "BECKMANN": DIST_BECKMANN}
+DIST_ASHIKHMIN_SHIRLEY = 3  # Ashikhmin-Shirley (engine/bsdf/ashikhmin_shirley.py): microfacet lobes only
+DISTRIBUTIONS = {"GGX": DIST_GGX, "MULTI_GGX": DIST_MULTI_GGX, "BECKMANN": DIST_BECKMANN,
+                 "ASHIKHMIN_SHIRLEY": DIST_ASHIKHMIN_SHIRLEY}
 
 # Image texture lookups (Cycles' Image Texture node).
 EXT_REPEAT, EXT_EXTEND, EXT_CLIP, EXT_MIRROR = 0, 1, 2, 3

@@ -14,7 +14,7 @@ import pytest
 
 from ember.engine.bsdf import fresnel, lobes
 from ember.engine.bsdf.lobes import base, inputs
-from ember.engine.scene import (DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC,
+from ember.engine.scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC,
                                 LOBE_DIFFUSE, LOBE_KINDS, LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG,
                                 LOBE_TRANSPARENT, MAT_NODES, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, Materials)
 
@@ -54,6 +54,8 @@ CASES = {
                                  distribution=DIST_BECKMANN), 40, False),
     "beckmann_f82_r0.35": (dict(kind=LOBE_MICROFACET, fresnel=FRESNEL_F82, color=(0.9, 0.6, 0.3), roughness=0.35,
                                distribution=DIST_BECKMANN), 70, False),
+    "ashikhmin_shirley_r0.45": (dict(kind=LOBE_MICROFACET, fresnel=FRESNEL_NONE, color=(0.8, 0.7, 0.6), roughness=0.45,
+                                     distribution=DIST_ASHIKHMIN_SHIRLEY), 50, False),
 }
 DELTA = {"mirror", "glass_smooth_outside", "glass_smooth_inside", "transparent"}
 SMOOTH = [name for name in CASES if name not in DELTA]

@@ -12,15 +12,15 @@ reciprocity and its sigma = 0 limit (Lambert). The samplers' chi-square and the 
 in test_lobes.py (its multi_* and oren_nayar cases).
 With Blender (marked blender): the node setting reaches the lobes in both export paths, and a
 grid of spheres (gold metal, Principled plastic and glass at roughness 0.3 / 0.7 / 1.0, the
-default Multiscatter GGX, an Oren-Nayar diffuse and a Beckmann metal) in a white furnace
-renders as Cycles does.
+default Multiscatter GGX, an Oren-Nayar diffuse, a Beckmann metal and an Ashikhmin-Shirley
+Glossy) in a white furnace renders as Cycles does.
 """
 import numpy as np
 import pytest
 
 from ember.engine.bsdf import beckmann, lobes, multiscatter as ms, oren_nayar
 from ember.engine.bsdf.lobes import inputs
-from ember.engine.scene import (DIST_BECKMANN, DIST_GGX, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE,
+from ember.engine.scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_GGX, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE,
                                 LOBE_DIELECTRIC, LOBE_MICROFACET, LOBE_OREN_NAYAR, MAT_NODES, Materials)
 
 N = 200_000
@@ -133,6 +133,7 @@ MODELS = {
                   distribution=DIST_MULTI_GGX),
     "oren_nayar": dict(kind=LOBE_OREN_NAYAR, color=(0.9, 0.7, 0.5), roughness=1.0),
     "beckmann": _glossy(0.6, DIST_BECKMANN),
+    "ashikhmin_shirley": _glossy(0.5, DIST_ASHIKHMIN_SHIRLEY),
 }
 
 
@@ -143,7 +144,7 @@ def test_albedo_is_at_most_one_and_at_least_single_scattering(name):
         for inside in ((False, True) if spec["kind"] == LOBE_DIELECTRIC else (False,)):
             a, se = directional_albedo(spec, theta, inside=inside)
             assert np.all(a <= 1.0 + 4 * se + 1e-3), (theta, inside, a)
-            if spec["kind"] != LOBE_OREN_NAYAR and spec["distribution"] != DIST_BECKMANN:
+            if spec["kind"] != LOBE_OREN_NAYAR and spec["distribution"] in (DIST_GGX, DIST_MULTI_GGX):
                 single, _ = directional_albedo(dict(spec, distribution=DIST_GGX), theta, inside=inside)
                 assert np.all(a >= single - 1e-12)
 
@@ -276,8 +277,8 @@ def _noise_on(bpy, mat, socket):
 @pytest.mark.parametrize("path", ["converter", "nodes"])
 def test_the_distribution_and_diffuse_roughness_reach_the_lobes(path):
     """Blender's defaults (Multiscatter GGX) and GGX set by hand, on Glossy, Metallic, Glass and
-    the Principled's metallic, transmission and specular lobes; Beckmann on Glossy and Metallic
-    (glass and Ashikhmin-Shirley: GGX); Diffuse and Principled diffuse roughness: Oren-Nayar,
+    the Principled's metallic, transmission and specular lobes; Beckmann on Glossy and Metallic,
+    Ashikhmin-Shirley on Glossy (Beckmann glass: GGX); Diffuse and Principled diffuse roughness: Oren-Nayar,
     Lambert at 0."""
     bpy = _bpy()
     import ember
@@ -321,15 +322,15 @@ def test_the_distribution_and_diffuse_roughness_reach_the_lobes(path):
         assert kinds("rough_diffuse") == [S.LOBE_OREN_NAYAR] and kinds("diffuse") == [S.LOBE_DIFFUSE]
         if path == "converter":
             assert m.lobe_roughness[rows["rough_diffuse"][0]] == pytest.approx(0.5)
-        # Beckmann on the reflection lobes; glass and Ashikhmin-Shirley as GGX.
+        # Beckmann and Ashikhmin-Shirley on the reflection lobes; glass as GGX.
         assert dists("glossy_beckmann") == dists("metal_beckmann") == [S.DIST_BECKMANN]
-        assert dists("glass_beckmann") == dists("glossy_as") == [ggx]
+        assert dists("glass_beckmann") == [ggx] and dists("glossy_as") == [S.DIST_ASHIKHMIN_SHIRLEY]
     finally:
         ember.unregister()
 
 
 COLUMNS = ROUGHNESS
-ROWS = ("gold", "plastic", "glass", "oren_nayar", "beckmann")
+ROWS = ("gold", "plastic", "glass", "oren_nayar", "beckmann", "ashikhmin_shirley")
 SIZE_W, SIZE_H = 36, 12 * len(ROWS)  # 12 pixels per unit
 RUNS = 8
 CYCLES_SAMPLES, EMBER_SAMPLES = 256, 128  # per run
@@ -337,7 +338,8 @@ CYCLES_SAMPLES, EMBER_SAMPLES = 256, 128  # per run
 
 def _furnace_scene(bpy, distribution="MULTI_GGX"):
     """Spheres of radius 0.4 on a 1-unit grid in the x-z plane (columns: roughness, rows: ROWS
-    from the top; the Beckmann row a copper Metallic BSDF) under a white world of strength 1,
+    from the top; the Beckmann row a copper Metallic BSDF, the Ashikhmin-Shirley row a grey
+    Glossy BSDF) under a white world of strength 1,
     seen by an orthographic camera from -y."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
@@ -365,9 +367,12 @@ def _furnace_scene(bpy, distribution="MULTI_GGX"):
             elif what == "oren_nayar":
                 mat = _material(bpy, f"{what}{r}", "ShaderNodeBsdfDiffuse", Roughness=r,
                                 Color=(0.5, 0.3, 0.2, 1.0))
-            else:
+            elif what == "beckmann":
                 mat = _material(bpy, f"{what}{r}", "ShaderNodeBsdfMetallic", Roughness=r, distribution="BECKMANN",
                                 **{"Base Color": (0.95, 0.64, 0.54, 1.0)})
+            else:
+                mat = _material(bpy, f"{what}{r}", "ShaderNodeBsdfAnisotropic", Roughness=r,
+                                distribution="ASHIKHMIN_SHIRLEY", Color=(0.8, 0.8, 0.8, 1.0))
             bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=0.4,
                                                  location=(col - 1.0, 0.0, _row_z(row)))
             bpy.ops.object.shade_smooth()

@@ -355,7 +355,7 @@ class _Converter:
         elif kind in ("ShaderNodeBsdfGlass", "ShaderNodeBsdfRefraction"):
             if kind == "ShaderNodeBsdfRefraction":
                 self.note(f"'{node.name}' Refraction BSDF (rendered as Glass: adds the Fresnel reflection)")
-            dist = self.distribution(node, beckmann=False)
+            dist = self.distribution(node, reflection=False)
             color, tex = self.color(node, "Color")
             rough, rtex = self.value(node, "Roughness")
             ior = max(self.constant(node, "IOR"), 1e-5)
@@ -382,13 +382,13 @@ class _Converter:
                 color, tex = np.array(GREY), -1
             self.add(w, kind=LOBE_DIFFUSE, color=tuple(color), color_tex=tex)
 
-    def distribution(self, node, beckmann: bool = True) -> int:
-        """The node's DIST_*: Multiscatter GGX, GGX, Beckmann where the lobe has it (reflection);
-        the others are rendered as GGX."""
+    def distribution(self, node, reflection: bool = True) -> int:
+        """The node's DIST_*: Multiscatter GGX, GGX, and Beckmann or Ashikhmin-Shirley on a
+        reflection lobe; the others are rendered as GGX."""
         dist = getattr(node, "distribution", "GGX")
         if dist == "SHARP":
             return DIST_GGX
-        if dist not in DISTRIBUTIONS or (dist == "BECKMANN" and not beckmann):
+        if dist not in DISTRIBUTIONS or (dist in ("BECKMANN", "ASHIKHMIN_SHIRLEY") and not reflection):
             self.note(f"'{node.name}' {dist} distribution (rendered as GGX)")
             return DIST_GGX
         return DISTRIBUTIONS[dist]

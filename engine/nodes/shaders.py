@@ -73,14 +73,14 @@ def _linked_or_set(node, name: str, default: float) -> bool:
     return socket is not None and (socket.link is not None or float(np.max(socket.value)) != default)
 
 
-_HAS_BECKMANN = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy", "ShaderNodeBsdfMetallic")
+_REFLECTION_ONLY = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy", "ShaderNodeBsdfMetallic")
 
 
 def _distribution(node) -> str:
-    """The node's distribution as a lobe parameter: Multiscatter GGX, GGX, Beckmann on the
-    reflection lobes; GGX for the others."""
+    """The node's distribution as a lobe parameter: Multiscatter GGX, GGX, and Beckmann or
+    Ashikhmin-Shirley on the reflection lobes (Glossy, Metallic); GGX for the others."""
     dist = node.prop("distribution", "GGX")
-    if dist == "MULTI_GGX" or (dist == "BECKMANN" and node.kind in _HAS_BECKMANN):
+    if dist == "MULTI_GGX" or (dist in ("BECKMANN", "ASHIKHMIN_SHIRLEY") and node.kind in _REFLECTION_ONLY):
         return dist
     return "GGX"
 

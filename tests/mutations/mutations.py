@@ -663,4 +663,10 @@ MUTATIONS = [
          old="    return np.where(s < 0.39, 0.0, lam)",
          new="    return np.zeros(len(w))",
          tests=["tests/test_multiscatter.py"]),
+    dict(name="ashikhmin_shirley_exponent_of_alpha",
+         note="Ashikhmin-Shirley's exponent 2 / alpha - 2 instead of 2 / alpha^2 - 2",
+         file="engine/bsdf/ashikhmin_shirley.py",
+         old="    return 2.0 / (a * a) - 2.0",
+         new="    return 2.0 / a - 2.0",
+         tests=["tests/test_multiscatter.py"]),
 ]

@@ -6,7 +6,7 @@ module here and one entry in LOBES; phase functions (volumes) have the same inte
     0     Diffuse       diffuse            diffuse                          never
     1     Phong         diffuse + glossy   glossy                           never
     2     Microfacet    glossy             glossy                           roughness <= 0.00376
-                        (GGX, Multiscatter GGX, Beckmann)
+                        (GGX, Multiscatter GGX, Beckmann, Ashikhmin-Shirley)
     3     Dielectric    glossy + transmit  glossy / transmission            smooth or ior ~ 1
     4     Transparent   none               transmission                     always
     5     OrenNayar     diffuse            diffuse                          never

@@ -8,27 +8,40 @@ dielectric Fresnel of ior remapped to F0(ior) tint .. 1 (Principled specular).
 Rows of DIST_MULTI_GGX (Blender's default distribution) are scaled by Cycles' energy
 compensation (engine/bsdf/multiscatter.py) with the mean Fresnel Fss of their model, the factor
 of wo applied to eval, to mirror samples' weights and to the albedo estimates. Rows of
-DIST_BECKMANN (Glossy and Metallic) use the Beckmann distribution (engine/bsdf/beckmann.py)."""
+DIST_BECKMANN (Glossy and Metallic) use the Beckmann distribution (engine/bsdf/beckmann.py),
+rows of DIST_ASHIKHMIN_SHIRLEY (Glossy) Cycles' Ashikhmin-Shirley lobe
+(engine/bsdf/ashikhmin_shirley.py, its own alpha clamp and mirror threshold)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...scene import DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_MICROFACET, RAY_GLOSSY
+from ...scene import DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_MICROFACET, RAY_GLOSSY
 from ...vec import dot, normalize
-from .. import beckmann, fresnel, layering, microfacet, multiscatter
+from .. import ashikhmin_shirley, beckmann, fresnel, layering, microfacet, multiscatter
 from . import inputs
 from .base import CLASS_GLOSSY, LABEL_GLOSSY, LobeSample, SurfaceLobe, SurfaceParams, mean_albedo
 
 _MIRROR_XY = np.array([-1.0, -1.0, 1.0])  # reflection about the normal
+# The formulas of each MicrofacetParams.model: GGX (also Multiscatter GGX), Beckmann, A-S.
+MODEL_GGX, MODEL_BECKMANN, MODEL_ASHIKHMIN = 0, 1, 2
+_MODELS = (microfacet, beckmann, ashikhmin_shirley)
+
+
+def _groups(p):
+    """[(formula module, its rows (R,) or None for all rows)] of the models present."""
+    model = p.model
+    if not model.any():
+        return [(microfacet, None)]
+    return [(_MODELS[k], np.flatnonzero(model == k)) for k in np.unique(model)]
 
 
 @dataclass
 class MicrofacetParams(SurfaceParams):
     """tint (K,3); roughness (K,) Blender's; alpha (K,) GGX (roughness^2, or Filter Glossy's);
-    ior (K,); fresnel (K,) FRESNEL_*; multi (K,) bool: DIST_MULTI_GGX; beckmann (K,) bool:
-    DIST_BECKMANN."""
+    ior (K,); fresnel (K,) FRESNEL_*; multi (K,) bool: DIST_MULTI_GGX; model (K,) int8
+    MODEL_* (the formulas of the row's distribution)."""
 
     tint: np.ndarray
     roughness: np.ndarray
@@ -36,7 +49,7 @@ class MicrofacetParams(SurfaceParams):
     ior: np.ndarray
     fresnel: np.ndarray
     multi: np.ndarray
-    beckmann: np.ndarray
+    model: np.ndarray
 
 
 def fresnel_color(p: MicrofacetParams, cos: np.ndarray) -> np.ndarray:
@@ -104,13 +117,24 @@ class Microfacet(SurfaceLobe):
         color = inputs.color(m, lobe, point, src)
         roughness = inputs.roughness(m, lobe, point, src)
         alpha = microfacet.alpha_from_roughness(roughness)
-        return MicrofacetParams(color=color, delta=microfacet.is_delta(alpha), tint=inputs.tint(m, lobe, color, src),
-                                roughness=roughness, alpha=alpha, ior=inputs.ior(m, lobe, src), fresnel=m.lobe_fresnel[lobe],
-                                multi=m.lobe_distribution[lobe] == DIST_MULTI_GGX,
-                                beckmann=m.lobe_distribution[lobe] == DIST_BECKMANN)
+        dist = m.lobe_distribution[lobe]
+        model = np.where(dist == DIST_BECKMANN, MODEL_BECKMANN,
+                         np.where(dist == DIST_ASHIKHMIN_SHIRLEY, MODEL_ASHIKHMIN, MODEL_GGX)).astype(np.int8)
+        a = np.flatnonzero(model == MODEL_ASHIKHMIN)
+        if len(a):
+            alpha[a] = ashikhmin_shirley.alpha(roughness[a])
+        p = MicrofacetParams(color=color, delta=np.zeros(len(lobe), bool), tint=inputs.tint(m, lobe, color, src),
+                             roughness=roughness, alpha=alpha, ior=inputs.ior(m, lobe, src), fresnel=m.lobe_fresnel[lobe],
+                             multi=dist == DIST_MULTI_GGX, model=model)
+        p.delta = self.is_delta(p)
+        return p
 
     def is_delta(self, p):
-        return microfacet.is_delta(p.alpha)
+        delta = microfacet.is_delta(p.alpha)
+        a = np.flatnonzero(p.model == MODEL_ASHIKHMIN)
+        if len(a):
+            delta[a] = ashikhmin_shirley.is_delta(p.alpha[a])
+        return delta
 
     def albedo(self, p, wo):
         a = fresnel_color(p, np.clip(wo[:, 2], 0.0, 1.0))
@@ -125,31 +149,32 @@ class Microfacet(SurfaceLobe):
         r, scale, _ = energy(p, wo)
         if len(r):
             F[r] *= scale
-        b = np.flatnonzero(p.beckmann)
-        if not len(b):
+        groups = _groups(p)
+        if groups[0][1] is None:
             return microfacet.eval_reflection(p.alpha, wo, wi, F), microfacet.pdf_reflection(p.alpha, wo, wi)
         f, pdf = np.empty((len(p), 3)), np.empty(len(p))
-        g = np.flatnonzero(~p.beckmann)
-        f[g] = microfacet.eval_reflection(p.alpha[g], wo[g], wi[g], F[g])
-        pdf[g] = microfacet.pdf_reflection(p.alpha[g], wo[g], wi[g])
-        f[b] = beckmann.eval_reflection(p.alpha[b], wo[b], wi[b], F[b])
-        pdf[b] = beckmann.pdf_reflection(p.alpha[b], wo[b], wi[b])
+        for model, r in groups:
+            f[r] = model.eval_reflection(p.alpha[r], wo[r], wi[r], F[r])
+            pdf[r] = model.pdf_reflection(p.alpha[r], wo[r], wi[r])
         return f, pdf
 
     def pdf(self, p, wo, wi):
-        b = np.flatnonzero(p.beckmann)
-        if not len(b):
+        groups = _groups(p)
+        if groups[0][1] is None:
             return microfacet.pdf_reflection(p.alpha, wo, wi)
-        pdf = microfacet.pdf_reflection(p.alpha, wo, wi)
-        pdf[b] = beckmann.pdf_reflection(p.alpha[b], wo[b], wi[b])
+        pdf = np.empty(len(p))
+        for model, r in groups:
+            pdf[r] = model.pdf_reflection(p.alpha[r], wo[r], wi[r])
         return pdf
 
     def _sample_rough(self, p, wo, u):
         """(wi, pdf) of rows that are not delta."""
-        b = np.flatnonzero(p.beckmann)
-        wi, _, pdf = microfacet.sample_reflection(p.alpha, wo, u)
-        if len(b):
-            wi[b], _, pdf[b] = beckmann.sample_reflection(p.alpha[b], wo[b], u[b])
+        groups = _groups(p)
+        if groups[0][1] is None:
+            return microfacet.sample_reflection(p.alpha, wo, u)[::2]
+        wi, pdf = np.empty((len(p), 3)), np.empty(len(p))
+        for model, r in groups:
+            wi[r], _, pdf[r] = model.sample_reflection(p.alpha[r], wo[r], u[r])
         return wi, pdf
 
     def sample(self, p, wo, u, u_branch) -> LobeSample:
