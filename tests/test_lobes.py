@@ -14,8 +14,8 @@ import pytest
 
 from ember.engine.bsdf import fresnel, lobes
 from ember.engine.bsdf.lobes import base, inputs
-from ember.engine.scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC,
-                                LOBE_DIFFUSE, LOBE_KINDS, LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG,
+from ember.engine.scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC,
+                                FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_KINDS, LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG,
                                 LOBE_TRANSPARENT, MAT_NODES, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, Materials)
 
 from stats import ChiSquareTest, Sphere, integrate

@@ -20,7 +20,8 @@ import pytest
 
 from ember.engine.bsdf import beckmann, lobes, multiscatter as ms, oren_nayar
 from ember.engine.bsdf.lobes import inputs
-from ember.engine.scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_GGX, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE,
+from ember.engine.scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_GGX, DIST_MULTI_GGX, FRESNEL_DIELECTRIC,
+                                FRESNEL_F82, FRESNEL_NONE,
                                 LOBE_DIELECTRIC, LOBE_MICROFACET, LOBE_OREN_NAYAR, MAT_NODES, Materials)
 
 N = 200_000

@@ -8,7 +8,7 @@ plus the Sidak-corrected noise band of the between-seed spread (a t-test with SE
 degrees of freedom per renderer). A 3 % error in a textured emitter's radiance fails it.
 
 GGX is set on both sides where the scene is glossy: Cycles 5.0's default, Multiscatter GGX, is
-not built yet (a different BSDF, 1-2 % brighter at high roughness)."""
+compared in test_multiscatter.py."""
 import numpy as np
 import pytest
 from scipy import stats as st

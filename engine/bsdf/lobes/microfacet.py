@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...scene import DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_MICROFACET, RAY_GLOSSY
+from ...scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82,
+                      LOBE_MICROFACET, RAY_GLOSSY)
 from ...vec import dot, normalize
 from .. import ashikhmin_shirley, beckmann, fresnel, layering, microfacet, multiscatter
 from . import inputs
