@@ -226,6 +226,47 @@ def test_multiscatter_is_a_factor_of_wo_alone():
     assert np.all(ratio[0] > 1.0)
 
 
+@pytest.mark.parametrize("kind", [LOBE_MICROFACET, LOBE_DIELECTRIC])
+def test_photons_see_the_adjoint_of_multiscatter(kind):
+    """A closure of light particles (Params.adjoint: wo toward the light) scales by the factor
+    of wi, the viewing side of the adjoint: f_adjoint(wo, wi) / f_single(wo, wi) equals
+    f(wi, wo) / f_single(wi, wo), on both sides of glass."""
+    k = 4000
+    rng = np.random.default_rng(9)
+    wo, wi = rng.normal(size=(2, k, 3))
+    wo[:, 2] = np.abs(wo[:, 2])
+    if kind == LOBE_MICROFACET:
+        wi[:, 2] = np.abs(wi[:, 2])
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    wi /= np.linalg.norm(wi, axis=1, keepdims=True)
+    spec = dict(kind=kind, color=(0.9, 0.6, 0.3), tint=(0.9, 0.6, 0.3), roughness=0.8, ior=1.5)
+    if kind == LOBE_MICROFACET:
+        spec["fresnel"] = FRESNEL_F82
+
+    def ratio(a, b, adjoint, inside):
+        out = []
+        for dist in (DIST_MULTI_GGX, DIST_GGX):
+            m = Materials.make([dict(kind=MAT_NODES, lobes=[dict(spec, distribution=dist)])])
+            lobe = lobes.LOBES[kind]
+            p = lobe.parameters(m, np.zeros(k, np.int64), np.arange(k), inputs.Sources(None), inside)
+            p.adjoint = adjoint
+            out.append(lobe.eval(p, a, b)[0])
+        ok = out[1][:, 0] > 1e-8
+        return np.where(ok[:, None], out[0] / np.where(ok[:, None], out[1], 1.0), np.nan)
+
+    inside = rng.random(k) < 0.5
+    # Seen from wi's side the surface is inside where wi crossed it.
+    other = inside ^ (wi[:, 2] < 0)
+    wi_up = wi * np.where(wi[:, 2:3] < 0, -1.0, 1.0)  # the frame flips with the side it is seen from
+    wo_seen = wo * np.where(wi[:, 2:3] < 0, -1.0, 1.0)
+    adj = ratio(wo, wi, True, inside)
+    fwd = ratio(wi_up, wo_seen, False, other)
+    both = ~np.isnan(adj[:, 0]) & ~np.isnan(fwd[:, 0])
+    assert both.mean() > 0.3
+    np.testing.assert_allclose(adj[both], fwd[both], rtol=1e-9)
+    assert np.abs(adj[both] - ratio(wo, wi, False, inside)[both]).max() > 0.01  # not the forward factor
+
+
 # ---------------------------------------------------------------- with Blender
 
 def _bpy():

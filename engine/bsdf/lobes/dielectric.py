@@ -40,13 +40,15 @@ class DielectricParams(SurfaceParams):
     multi: np.ndarray
 
 
-def energy(p: DielectricParams, wo: np.ndarray):
-    """(rows (R,) of DIST_MULTI_GGX, their (scale, darkening) (R,3) at wo)."""
+def energy(p: DielectricParams, wo: np.ndarray, wi=None):
+    """(rows (R,) of DIST_MULTI_GGX, their (scale, darkening) (R,3)) at the viewing direction:
+    wo, or wi (where given) for the adjoint, the IOR relative to its side."""
     r = np.flatnonzero(p.multi)
     if not len(r):
         return r, None, None
-    q, mu = p.take(r), np.clip(wo[r, 2], 0.0, 1.0)
-    eta = np.where(q.inside, 1.0 / q.ior, q.ior)
+    view = (wi if p.adjoint and wi is not None else wo)[r]
+    q, mu = p.take(r), np.clip(np.abs(view[:, 2]), 0.0, 1.0)
+    eta = np.where(q.inside ^ (view[:, 2] < 0), 1.0 / q.ior, q.ior)
     Fss = np.maximum(q.color, 0.0)
     dark = ~np.any(Fss > 0.0, axis=1)  # refraction left out: Cycles takes the reflection's
     if dark.any():
@@ -106,7 +108,7 @@ class Dielectric(SurfaceLobe):
         reflected = ((wi[:, 2] > 0) == (wo[:, 2] > 0))[:, None]
         tint = np.where(reflected, p.tint, p.color) * (wo[:, 2:3] > 0)
         f = dielectric.eval_rough(p.alpha, p.ior, wo_o, wi_o) * tint
-        r, scale, _ = energy(p, wo)
+        r, scale, _ = energy(p, wo, wi)
         if len(r):
             f[r] *= scale
         return f, np.where(wo[:, 2] > 0, dielectric.pdf_rough(p.alpha, p.ior, wo_o, wi_o), 0.0)
@@ -131,7 +133,7 @@ class Dielectric(SurfaceLobe):
             wi[d], weight[d], pdf[d] = _sample_smooth(p.take(d), wo[d], wo_o[d], out[d], u_branch[d])
             wi[s], pdf[s] = _sample_rough(p.take(s), wo[s], wo_o[s], out[s], u[s], u_branch[s])
         if weight is not None:
-            r, scale, _ = energy(p, wo)
+            r, scale, _ = energy(p, wo, wi)
             if len(r):
                 weight[r] *= scale
         label = np.where(wi[:, 2] * wo[:, 2] < 0, LABEL_TRANSMIT, LABEL_GLOSSY)

@@ -80,12 +80,14 @@ def mean_fresnel(p: MicrofacetParams) -> np.ndarray:
     return Fss
 
 
-def energy(p: MicrofacetParams, wo: np.ndarray):
-    """(rows (R,) of DIST_MULTI_GGX, their (scale, darkening) (R,3) at wo)."""
+def energy(p: MicrofacetParams, wo: np.ndarray, wi=None):
+    """(rows (R,) of DIST_MULTI_GGX, their (scale, darkening) (R,3)) at the viewing direction:
+    wo, or wi (where given) for the adjoint."""
     r = np.flatnonzero(p.multi)
     if not len(r):
         return r, None, None
-    q, mu = p.take(r), np.clip(wo[r, 2], 0.0, 1.0)
+    view = wi if p.adjoint and wi is not None else wo
+    q, mu = p.take(r), np.clip(view[r, 2], 0.0, 1.0)
     scale, darkening = multiscatter.factor(multiscatter.E(q.roughness, mu), multiscatter.E_avg(q.roughness),
                                            mean_fresnel(q))
     return r, scale, darkening
@@ -147,7 +149,7 @@ class Microfacet(SurfaceLobe):
     def eval(self, p, wo, wi):
         h = normalize(wo + wi)
         F = fresnel_color(p, np.clip(dot(wo, h), 0.0, 1.0))
-        r, scale, _ = energy(p, wo)
+        r, scale, _ = energy(p, wo, wi)
         if len(r):
             F[r] *= scale
         groups = _groups(p)
