@@ -31,12 +31,21 @@ LOBE_PHONG = 1  # kd = colour, ks = tint, exponent n
 LOBE_MICROFACET = 2  # GGX reflection, alpha = roughness^2; a perfect mirror when smooth
 LOBE_DIELECTRIC = 3  # GGX (or smooth) reflection + refraction with the exact Fresnel of ior
 LOBE_TRANSPARENT = 4  # straight pass-through (alpha, Transparent BSDF)
-LOBE_KINDS = 5
+LOBE_OREN_NAYAR = 5  # rough diffuse: Cycles' energy-preserving Oren-Nayar, sigma = roughness
+LOBE_KINDS = 6
 
 # Fresnel of LOBE_MICROFACET (Cycles' models).
 FRESNEL_NONE = 0  # F = colour (Glossy BSDF)
 FRESNEL_F82 = 1  # conductor: F0 = colour, F82 tint = tint (Principled metallic, Metallic BSDF)
 FRESNEL_DIELECTRIC = 2  # exact Fresnel of ior remapped to F0 = F0(ior) tint .. 1 (Principled)
+
+# Microfacet distribution of LOBE_MICROFACET and LOBE_DIELECTRIC (the nodes' `distribution`).
+DIST_GGX = 0  # single-scattering GGX
+DIST_MULTI_GGX = 1  # GGX with Cycles' energy compensation (engine/bsdf/multiscatter.py)
+DIST_BECKMANN = 2  # Beckmann (engine/bsdf/beckmann.py): microfacet lobes only
+DIST_ASHIKHMIN_SHIRLEY = 3  # Ashikhmin-Shirley (engine/bsdf/ashikhmin_shirley.py): microfacet lobes only
+DISTRIBUTIONS = {"GGX": DIST_GGX, "MULTI_GGX": DIST_MULTI_GGX, "BECKMANN": DIST_BECKMANN,
+                 "ASHIKHMIN_SHIRLEY": DIST_ASHIKHMIN_SHIRLEY}
 
 # Image texture lookups (Cycles' Image Texture node).
 EXT_REPEAT, EXT_EXTEND, EXT_CLIP, EXT_MIRROR = 0, 1, 2, 3
@@ -131,7 +140,7 @@ class Mesh:
 
 _LOBE_DEFAULTS = dict(kind=LOBE_DIFFUSE, weight=(1.0, 1.0, 1.0), color=(0.8, 0.8, 0.8), color_tex=-1,
                       color_sqrt=False, tint=(1.0, 1.0, 1.0), tint_is_color=False, roughness=0.5,
-                      roughness_tex=-1, ior=1.5, fresnel=FRESNEL_NONE, exponent=1.0, layer=-1,
+                      roughness_tex=-1, ior=1.5, fresnel=FRESNEL_NONE, distribution=DIST_GGX, exponent=1.0, layer=-1,
                       opacity_tex=-1, opacity_invert=False)
 _SLOT_DEFAULTS = dict(image=0, output=TEX_COLOR, extension=EXT_REPEAT, interpolation=INTERP_LINEAR,
                       transform=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)))
@@ -155,7 +164,8 @@ class Materials:
     lobe_tint (K,3): FRESNEL_DIELECTRIC specular tint, FRESNEL_F82 edge tint, dielectric
     reflection tint (the colour itself where lobe_tint_is_color), Phong ks;
     lobe_roughness (K,) Blender roughness (alpha = roughness^2), from slot lobe_roughness_tex;
-    lobe_ior (K,) (n_inside / n_outside); lobe_fresnel (K,) FRESNEL_*; lobe_exponent (K,)
+    lobe_ior (K,) (n_inside / n_outside); lobe_fresnel (K,) FRESNEL_*; lobe_distribution (K,)
+    DIST_* of microfacet and dielectric lobes; lobe_exponent (K,)
     Phong n; lobe_layer (K,) the lobe this one lies under (it is scaled by 1 - that lobe's
     albedo, Cycles' closure layering; -1 none); lobe_opacity_tex (K,) slot whose scalar
     value multiplies the weight (1 - value where lobe_opacity_invert): textured alpha.
@@ -193,6 +203,7 @@ class Materials:
     lobe_roughness_tex: np.ndarray = None
     lobe_ior: np.ndarray = None
     lobe_fresnel: np.ndarray = None
+    lobe_distribution: np.ndarray = None
     lobe_exponent: np.ndarray = None
     lobe_layer: np.ndarray = None
     lobe_opacity_tex: np.ndarray = None
@@ -273,6 +284,7 @@ class Materials:
             lobe_roughness_tex=col("roughness_tex", np.int32),
             lobe_ior=col("ior", np.float64),
             lobe_fresnel=col("fresnel", np.int32),
+            lobe_distribution=col("distribution", np.int32),
             lobe_exponent=col("exponent", np.float64),
             lobe_layer=col("layer", np.int32),
             lobe_opacity_tex=col("opacity_tex", np.int32),

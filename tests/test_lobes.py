@@ -14,9 +14,9 @@ import pytest
 
 from ember.engine.bsdf import fresnel, lobes
 from ember.engine.bsdf.lobes import base, inputs
-from ember.engine.scene import (FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE,
-                                LOBE_KINDS, LOBE_MICROFACET, LOBE_PHONG, LOBE_TRANSPARENT, MAT_NODES, RAY_DIFFUSE,
-                                RAY_GLOSSY, RAY_TRANSMIT, Materials)
+from ember.engine.scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC,
+                                FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_KINDS, LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG,
+                                LOBE_TRANSPARENT, MAT_NODES, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, Materials)
 
 from stats import ChiSquareTest, Sphere, integrate
 
@@ -43,6 +43,19 @@ CASES = {
     "glass_smooth_inside": (dict(kind=LOBE_DIELECTRIC, color=(0.9, 0.8, 0.7), tint=(1.0, 1.0, 0.9), roughness=0.0,
                                  ior=1.5), 55, True),
     "transparent": (dict(kind=LOBE_TRANSPARENT, color=(0.5, 0.6, 0.7)), 20, False),
+    "multi_ggx_f82_r0.7": (dict(kind=LOBE_MICROFACET, fresnel=FRESNEL_F82, color=(0.9, 0.6, 0.3), tint=(0.8, 0.9, 1.0),
+                                roughness=0.7, distribution=DIST_MULTI_GGX), 50, False),
+    "multi_ggx_specular_r0.5": (dict(kind=LOBE_MICROFACET, fresnel=FRESNEL_DIELECTRIC, ior=1.45, tint=(1.0, 0.9, 0.8),
+                                     roughness=0.5, distribution=DIST_MULTI_GGX), 40, False),
+    "multi_glass_rough_inside": (dict(kind=LOBE_DIELECTRIC, color=(0.9, 0.8, 0.7), tint=(1.0, 1.0, 0.9), roughness=0.6,
+                                      ior=1.5, distribution=DIST_MULTI_GGX), 30, True),
+    "oren_nayar_r0.8": (dict(kind=LOBE_OREN_NAYAR, color=(0.6, 0.5, 0.4), roughness=0.8), 60, False),
+    "beckmann_plain_r0.5": (dict(kind=LOBE_MICROFACET, fresnel=FRESNEL_NONE, color=(0.8, 0.7, 0.6), roughness=0.5,
+                                 distribution=DIST_BECKMANN), 40, False),
+    "beckmann_f82_r0.35": (dict(kind=LOBE_MICROFACET, fresnel=FRESNEL_F82, color=(0.9, 0.6, 0.3), roughness=0.35,
+                               distribution=DIST_BECKMANN), 70, False),
+    "ashikhmin_shirley_r0.45": (dict(kind=LOBE_MICROFACET, fresnel=FRESNEL_NONE, color=(0.8, 0.7, 0.6), roughness=0.45,
+                                     distribution=DIST_ASHIKHMIN_SHIRLEY), 50, False),
 }
 DELTA = {"mirror", "glass_smooth_outside", "glass_smooth_inside", "transparent"}
 SMOOTH = [name for name in CASES if name not in DELTA]

@@ -37,9 +37,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene import (EXT_CLIP, EXT_EXTEND, EXT_MIRROR, EXT_REPEAT, FRESNEL_DIELECTRIC, FRESNEL_F82,
-                     FRESNEL_NONE, INTERP_CLOSEST, INTERP_LINEAR, LOBE_DIELECTRIC, LOBE_DIFFUSE,
-                     LOBE_MICROFACET, LOBE_PHONG, LOBE_TRANSPARENT, MAT_DIFFUSE, MAT_EMISSION_ONLY,
+from ..scene import (DIST_GGX, DISTRIBUTIONS, EXT_CLIP, EXT_EXTEND, EXT_MIRROR, EXT_REPEAT, FRESNEL_DIELECTRIC,
+                     FRESNEL_F82, FRESNEL_NONE, INTERP_CLOSEST, INTERP_LINEAR, LOBE_DIELECTRIC, LOBE_DIFFUSE,
+                     LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG, LOBE_TRANSPARENT, MAT_DIFFUSE, MAT_EMISSION_ONLY,
                      MAT_NODES, MAT_PHONG, TEX_ALPHA, TEX_COLOR, Materials)
 from ..nodes.bump import bump_from_displacement
 from ..nodes.hits import provides
@@ -345,11 +345,9 @@ class _Converter:
             self.shader(follow_link(node.inputs[1]), w, depth + 1)
         elif kind == "ShaderNodeBsdfDiffuse":
             color, tex = self.color(node, "Color")
-            if self.constant(node, "Roughness") > 0:
-                self.note(f"'{node.name}' Oren-Nayar roughness (rendered Lambertian)")
             self.normal_input(node)
             self.base_color = color if self.base_color is None else self.base_color
-            self.add(w, kind=LOBE_DIFFUSE, color=tuple(color), color_tex=tex)
+            self.add(w, color=tuple(color), color_tex=tex, **self.diffuse_roughness(node, "Roughness"))
         elif kind in ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic"):
             self.glossy(node, w)
         elif kind == "ShaderNodeBsdfMetallic":
@@ -357,13 +355,13 @@ class _Converter:
         elif kind in ("ShaderNodeBsdfGlass", "ShaderNodeBsdfRefraction"):
             if kind == "ShaderNodeBsdfRefraction":
                 self.note(f"'{node.name}' Refraction BSDF (rendered as Glass: adds the Fresnel reflection)")
-            self.distribution(node)
+            dist = self.distribution(node, reflection=False)
             color, tex = self.color(node, "Color")
             rough, rtex = self.value(node, "Roughness")
             ior = max(self.constant(node, "IOR"), 1e-5)
             self.normal_input(node)
             self.add(w, kind=LOBE_DIELECTRIC, color=tuple(color), color_tex=tex, tint_is_color=True,
-                     roughness=rough, roughness_tex=rtex, ior=ior)
+                     roughness=rough, roughness_tex=rtex, ior=ior, distribution=dist)
         elif kind == "ShaderNodeBsdfTransparent":
             color, tex = self.color(node, "Color")
             self.add(w, kind=LOBE_TRANSPARENT, color=tuple(color), color_tex=tex)
@@ -384,13 +382,29 @@ class _Converter:
                 color, tex = np.array(GREY), -1
             self.add(w, kind=LOBE_DIFFUSE, color=tuple(color), color_tex=tex)
 
-    def distribution(self, node):
+    def distribution(self, node, reflection: bool = True) -> int:
+        """The node's DIST_*: Multiscatter GGX, GGX, and Beckmann or Ashikhmin-Shirley on a
+        reflection lobe; the others are rendered as GGX."""
         dist = getattr(node, "distribution", "GGX")
-        if dist not in ("GGX", "MULTI_GGX", "SHARP"):
+        if dist == "SHARP":
+            return DIST_GGX
+        if dist not in DISTRIBUTIONS or (dist in ("BECKMANN", "ASHIKHMIN_SHIRLEY") and not reflection):
             self.note(f"'{node.name}' {dist} distribution (rendered as GGX)")
+            return DIST_GGX
+        return DISTRIBUTIONS[dist]
+
+    def diffuse_roughness(self, node, name: str) -> dict:
+        """The lobe kind and roughness of a diffuse from its roughness input: Oren-Nayar where
+        it has one (Cycles takes Lambert below 1e-5), else Lambert."""
+        if name not in node.inputs:
+            return dict(kind=LOBE_DIFFUSE)
+        rough, rtex = self.value(node, name)
+        if rtex < 0 and rough < 1e-5:
+            return dict(kind=LOBE_DIFFUSE)
+        return dict(kind=LOBE_OREN_NAYAR, roughness=float(np.clip(rough, 0.0, 1.0)), roughness_tex=rtex)
 
     def glossy(self, node, w):
-        self.distribution(node)
+        dist = self.distribution(node)
         color, tex = self.color(node, "Color")
         rough, rtex = self.value(node, "Roughness")
         if "Anisotropy" in node.inputs and (node.inputs["Anisotropy"].is_linked or node.inputs["Anisotropy"].default_value != 0):
@@ -400,10 +414,10 @@ class _Converter:
             self.phong_lobe(node, w, kd=np.zeros(3), ks=color, ks_tex=tex, rough=rough, rtex=rtex)
         else:
             self.add(w, kind=LOBE_MICROFACET, fresnel=FRESNEL_NONE, color=tuple(color), color_tex=tex,
-                     roughness=rough, roughness_tex=rtex)
+                     roughness=rough, roughness_tex=rtex, distribution=dist)
 
     def metallic(self, node, w):
-        self.distribution(node)
+        dist = self.distribution(node)
         rough, rtex = self.value(node, "Roughness")
         self.normal_input(node)
         if getattr(node, "fresnel_type", "F82") == "F82":
@@ -422,7 +436,7 @@ class _Converter:
             self.phong_lobe(node, w, kd=np.zeros(3), ks=f0, ks_tex=tex, rough=rough, rtex=rtex)
         else:
             self.add(w, kind=LOBE_MICROFACET, fresnel=FRESNEL_F82, color=tuple(f0), color_tex=tex,
-                     tint=tuple(np.clip(tint, 0.0, 1.0)), roughness=rough, roughness_tex=rtex)
+                     tint=tuple(np.clip(tint, 0.0, 1.0)), roughness=rough, roughness_tex=rtex, distribution=dist)
 
     def phong_lobe(self, node, w, kd, ks, ks_tex, rough, rtex, kd_tex=-1):
         """Phong lobe: kd may be textured (colour), ks only constant; kd + ks <= 1 enforced."""
@@ -439,11 +453,10 @@ class _Converter:
 
     def principled(self, node, w):
         """Cycles' Principled BSDF (svm/closure.h), top layer first."""
-        self.distribution(node)
+        dist = self.distribution(node)
         for label, key, default in (("coat", "Coat Weight", 0.0), ("sheen", "Sheen Weight", 0.0),
                                     ("subsurface", "Subsurface Weight", 0.0),
                                     ("anisotropy", "Anisotropic", 0.0),
-                                    ("diffuse roughness", "Diffuse Roughness", 0.0),
                                     ("thin film", "Thin Film Thickness", 0.0)):
             sock = node.inputs.get(key)
             if sock is not None and (sock.is_linked or float(sock.default_value) != default):
@@ -474,7 +487,7 @@ class _Converter:
         self.emission += w * ecolor * self.constant(node, "Emission Strength")
         if atex >= 0 and self.emission.max() > 0:
             self.note(f"'{node.name}' emission under a textured Alpha (emitted in full)")
-        common = dict(roughness=rough, roughness_tex=rtex, **opacity)
+        common = dict(roughness=rough, roughness_tex=rtex, distribution=dist, **opacity)
         eta = ior
         f0 = f0_from_ior(ior)
         if level != 0.5:  # Specular IOR Level rescales F0 and the IOR with it
@@ -506,7 +519,8 @@ class _Converter:
         if eta != 1.0:
             top = self.add(w, kind=LOBE_MICROFACET, fresnel=FRESNEL_DIELECTRIC, ior=eta,
                            tint=tuple(spec_tint), **common)
-        self.add(w, kind=LOBE_DIFFUSE, color=tuple(base), color_tex=btex, layer=top, **opacity)
+        self.add(w, color=tuple(base), color_tex=btex, layer=top, **self.diffuse_roughness(node, "Diffuse Roughness"),
+                 **opacity)
 
 
 def _group(warn, what: str, name: str) -> None:
@@ -599,7 +613,8 @@ def _node_row(mat, out, phong: bool, warn) -> dict | None:
         notes.append("displacement of the mesh (ignored" + ("; its bump is rendered)" if method == "BOTH" else ")"))
     if notes:
         warn(f"Material '{mat.name}': approximated " + "; ".join(notes) + ".")
-    base = next((lobe.get("color") for lobe in compiled.lobes if lobe["kind"] == LOBE_DIFFUSE), (0.0, 0.0, 0.0))
+    base = next((lobe.get("color") for lobe in compiled.lobes if lobe["kind"] in (LOBE_DIFFUSE, LOBE_OREN_NAYAR)),
+                (0.0, 0.0, 0.0))
     row = dict(kind=MAT_NODES, base_color=tuple(base), emission=tuple(compiled.emission_mean), name=mat.name,
                lobes=[dict(lobe) for lobe in compiled.lobes], graph=None if compiled.constant else graph)
     if not compiled.constant:

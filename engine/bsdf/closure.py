@@ -104,7 +104,7 @@ class Closure:
 
     def __init__(self, scene: Scene, mat: np.ndarray, ns: np.ndarray, ng: np.ndarray, wo: np.ndarray,
                  prim: np.ndarray, bary: np.ndarray, no_caustics=None, min_alpha=None, programs=None, p=None,
-                 ray=None):
+                 ray=None, adjoint=False):
         """mat (N,) material per point; ns, ng (N,3) unit normals on wo's side; wo (N,3) toward
         the previous vertex; prim (N,) triangles and bary (N,3) barycentrics of the hits.
         no_caustics: None, or (drop_reflection, drop_refraction) (N,) bool each: points whose
@@ -113,7 +113,8 @@ class Closure:
         programs: the scene's MaterialPrograms (engine/nodes/material.py), for materials whose
         node graphs vary over the surface; p (N,3) the hit points they are evaluated at; ray the
         path's record of the points (engine/nodes/hits.py RayState: path flags, bounce counts,
-        ray differential; None: camera rays' first hits)."""
+        ray differential; None: camera rays' first hits). adjoint: the closure scatters light
+        particles (wo toward the light): lobes evaluate their adjoint (Params.adjoint)."""
         m = scene.materials
         self.m = m
         self.ng, self.wo = ng, wo
@@ -151,6 +152,9 @@ class Closure:
         self.inside = dot(wo, outward) < 0 if outward is not None else np.zeros(n, bool)
 
         self.groups, self.pair_pos = self._group_pairs(kinds, src)
+        if adjoint:
+            for g in self.groups:
+                g.p.adjoint = True
         self.weight = inputs.weight(m, lobe, point, src)
         if no_caustics is not None:
             self._drop_caustics(*no_caustics)

@@ -140,17 +140,17 @@ class _MixedClosure(Closure):
 
 
 def make_closure(scene: Scene, lambert_albedo: np.ndarray, mat, ns, ng, wo, prim, bary, no_caustics=None,
-                 min_alpha=None, frame=None, programs=None, p=None, ray=None):
+                 min_alpha=None, frame=None, programs=None, p=None, ray=None, adjoint=False):
     """LambertClosure when every point's material is plain Lambertian, else the general Closure
     (with LambertClosure's numbers at the plain points of a mixed batch: _MixedClosure).
     lambert_albedo: plain_lambert_albedo(scene.materials), computed once per render;
-    no_caustics, min_alpha, programs, p, ray: see Closure (nothing to drop, blur or evaluate in
-    a Lambertian); frame: (t, b) = sampling.frame_from_z(ns), if known."""
+    no_caustics, min_alpha, programs, p, ray, adjoint: see Closure (nothing to drop, blur or
+    evaluate in a Lambertian, which is reciprocal); frame: (t, b) = sampling.frame_from_z(ns), if known."""
     albedo = take(lambert_albedo, mat)
     plain = ~np.isnan(albedo[:, 0])
     if plain.all():
         return LambertClosure(albedo, ns, ng, frame)
     if plain.any():
         return _MixedClosure(np.flatnonzero(plain), albedo, scene, mat, ns, ng, wo, prim, bary, no_caustics,
-                             min_alpha, programs, p, ray)
-    return Closure(scene, mat, ns, ng, wo, prim, bary, no_caustics, min_alpha, programs, p, ray)
+                             min_alpha, programs, p, ray, adjoint)
+    return Closure(scene, mat, ns, ng, wo, prim, bary, no_caustics, min_alpha, programs, p, ray, adjoint)

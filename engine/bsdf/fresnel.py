@@ -79,14 +79,20 @@ def f82_tint(f0, tint, cos):
     fresnel_f82). Cycles takes tint = min(Specular Tint, 1) and f0 = clamped Base Color.
     """
     f0 = np.asarray(f0, dtype=np.float64)
-    tint = np.asarray(tint, dtype=np.float64)
-    s = 1.0 - _COS_82
-    s5 = s ** 5
-    b = (f0 + (1.0 - f0) * s5) * (1.0 - tint) / (_COS_82 * s5 * s)
+    b = f82_b(f0, tint)
     cos = np.clip(np.asarray(cos, dtype=np.float64), 0.0, 1.0)
     m5 = _one_minus_cos_pow5(cos)
     F = f0 + (1.0 - f0) * m5 - b * (cos[:, None] * m5 * (1.0 - cos[:, None]))
     return np.clip(F, 0.0, 1.0)
+
+
+def f82_b(f0, tint):
+    """The F82-tint model's b (N,3) for f0, tint (N,3): Schlick(f0, 1/7) (1 - tint) / (cos (1 - cos)^6)
+    at cos = 1/7 (bsdf_util.h fresnel_f82tint_B)."""
+    s = 1.0 - _COS_82
+    s5 = s ** 5
+    f0 = np.asarray(f0, dtype=np.float64)
+    return (f0 + (1.0 - f0) * s5) * (1.0 - np.asarray(tint, dtype=np.float64)) / (_COS_82 * s5 * s)
 
 
 def dielectric_remapped(f0, cos_i, eta, f90=1.0):

@@ -96,9 +96,13 @@ def schlick_factor(roughness: np.ndarray, cos_o: np.ndarray, eta: np.ndarray) ->
     return (1 - tz) * plane(zi) + tz * plane(zn)
 
 
-def base_weight(f0: np.ndarray, roughness: np.ndarray, cos_o: np.ndarray, eta: np.ndarray) -> np.ndarray:
+def base_weight(f0: np.ndarray, roughness: np.ndarray, cos_o: np.ndarray, eta: np.ndarray, darkening=None) -> np.ndarray:
     """Weight (K,) left for the layers under a specular layer with F0 colour f0 (K,3):
-    clamp(1 - max_rgb(f0 + (1 - f0) s), 0, 1) (Cycles' closure_layering_weight)."""
+    clamp(1 - max_rgb(f0 + (1 - f0) s), 0, 1) (Cycles' closure_layering_weight); darkening
+    (K,3) multiplies the layer's albedo where given (Multiscatter GGX's, which Cycles folds
+    into the closure's weight)."""
     s = schlick_factor(roughness, cos_o, eta)[:, None]
     albedo = np.asarray(f0, np.float64) * (1.0 - s) + s
+    if darkening is not None:
+        albedo = albedo * darkening
     return np.clip(1.0 - albedo.max(axis=1), 0.0, 1.0)

@@ -15,13 +15,9 @@ Conventions, checked against Blender Cycles (blender/blender intern/cycles):
 - A lobe with alpha^2 <= 2e-10 (BSDF_ROUGHNESS_SQ_THRESH; roughness <= 0.00376) is a perfect
   mirror in Cycles: it has no eval and is sampled as a delta. `is_delta` marks those rows; the
   functions here must not be used for them (D would overflow toward a Dirac).
-- Not modelled: Cycles' "Multiscatter GGX" (the default distribution of Glossy, Glass,
-  Metallic and Principled in Blender 5.0), which scales this single-scattering lobe to restore
-  the energy lost to masking (Kulla & Conty 2017, bsdf_microfacet.h
-  microfacet_ggx_preserve_energy). The exporter renders it as this lobe, which reflects less at
-  high roughness (E(roughness 0.5, normal incidence) = 0.915; glass of IOR 1.5 loses 1-5 % at
-  roughness 0.55 and 2-26 % at roughness 1). An energy-compensation table that was computed
-  here but never used by any closure was removed (issue 12).
+- Cycles' "Multiscatter GGX" (the default distribution of Glossy, Glass, Metallic and
+  Principled in Blender 5.0) is this lobe times an energy compensation of wo
+  (engine/bsdf/multiscatter.py), applied by the lobes (engine/bsdf/lobes/).
 """
 import numpy as np
 

@@ -25,8 +25,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..scene import (FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET,
-                     LOBE_PHONG, LOBE_TRANSPARENT, part_digest)
+from ..scene import (DISTRIBUTIONS, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE,
+                     LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG, LOBE_TRANSPARENT, part_digest)
 from . import light_path
 from .closures import closures
 from .graph import Graph
@@ -35,7 +35,7 @@ from .program import Program, compile
 from .state import ShadingState
 
 LOBE_OF = {"diffuse": LOBE_DIFFUSE, "phong": LOBE_PHONG, "microfacet": LOBE_MICROFACET,
-           "dielectric": LOBE_DIELECTRIC, "transparent": LOBE_TRANSPARENT}
+           "dielectric": LOBE_DIELECTRIC, "transparent": LOBE_TRANSPARENT, "oren_nayar": LOBE_OREN_NAYAR}
 FRESNEL_OF = {"none": FRESNEL_NONE, "f82": FRESNEL_F82, "dielectric": FRESNEL_DIELECTRIC}
 # Lobe inputs a closure may carry, and whether each is a colour or vector (3 components).
 PARAMS = {"color": True, "tint": True, "roughness": False, "ior": False, "exponent": False}
@@ -183,6 +183,8 @@ def compile_material(graph: Graph) -> MaterialProgram:
                     names.append(name)
         if "fresnel" in c.params:
             lobe["fresnel"] = FRESNEL_OF[c.params["fresnel"]]
+        if "distribution" in c.params:
+            lobe["distribution"] = DISTRIBUTIONS[c.params["distribution"]]
         if "layer" in c.params:
             lobe["layer"] = tags[c.params["layer"]]
         lobes.append(lobe)

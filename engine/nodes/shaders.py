@@ -3,8 +3,9 @@ closures from them (svm/closure.h), and what Ember approximates.
 
 A BSDF node makes closures whose kind is a lobe's ("diffuse", "microfacet", ...), whose weight
 is its mixture weight and whose params are the lobe's inputs, per point or constant:
-  color, tint (3), roughness (Blender's, alpha = roughness^2), ior, exponent (Phong),
-  fresnel ("none", "f82", "dielectric": the microfacet lobe's model), normal (3, unnormalised
+  color, tint (3), roughness (Blender's, alpha = roughness^2; Oren-Nayar's sigma), ior, exponent
+  (Phong), fresnel ("none", "f82", "dielectric": the microfacet lobe's model), distribution
+  ("GGX", "MULTI_GGX": the node's microfacet distribution), normal (3, unnormalised
   world direction where the node's Normal is linked), layer (the tag of the closure this one
   lies under: it keeps 1 - that lobe's albedo, Cycles' closure layering).
 Every closure has a tag unique within its node (the node's label and its part), so layers
@@ -72,18 +73,34 @@ def _linked_or_set(node, name: str, default: float) -> bool:
     return socket is not None and (socket.link is not None or float(np.max(socket.value)) != default)
 
 
+_REFLECTION_ONLY = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy", "ShaderNodeBsdfMetallic")
+
+
+def _distribution(node) -> str:
+    """The node's distribution as a lobe parameter: Multiscatter GGX, GGX, and Beckmann or
+    Ashikhmin-Shirley on the reflection lobes (Glossy, Metallic); GGX for the others."""
+    dist = node.prop("distribution", "GGX")
+    if dist == "MULTI_GGX" or (dist in ("BECKMANN", "ASHIKHMIN_SHIRLEY") and node.kind in _REFLECTION_ONLY):
+        return dist
+    return "GGX"
+
+
 def _distribution_notes(node) -> list:
     dist = node.prop("distribution", "GGX")
-    return [] if dist in ("GGX", "MULTI_GGX", "SHARP") else [f"{dist} distribution rendered as GGX"]
+    return [] if dist in ("SHARP", _distribution(node)) else [f"{dist} distribution rendered as GGX"]
 
 
-def _diffuse_notes(node) -> list:
-    return ["Oren-Nayar roughness rendered Lambertian"] if _linked_or_set(node, "Roughness", 0.0) else []
+def _diffuse(weight, tag, color, roughness, **params) -> tuple:
+    """Lambert, or Cycles' Oren-Nayar where the roughness varies or is at least 1e-5."""
+    if np.ndim(roughness) or float(roughness) >= 1e-5:
+        return _closure("oren_nayar", weight, tag, color=color, roughness=np.clip(roughness, 0.0, 1.0), **params)
+    return _closure("diffuse", weight, tag, color=color, **params)
 
 
-@node("ShaderNodeBsdfDiffuse", "Shader", notes=_diffuse_notes)
+@node("ShaderNodeBsdfDiffuse", "Shader")
 def diffuse(node, inputs, state):
-    return {"BSDF": _closure("diffuse", ONES, node.label, color=triple(inputs["Color"]), **_normal(node, inputs))}
+    return {"BSDF": _diffuse(ONES, node.label, triple(inputs["Color"]), scalar(inputs["Roughness"]),
+                             **_normal(node, inputs))}
 
 
 def _glossy_notes(node) -> list:
@@ -98,7 +115,8 @@ def glossy(node, inputs, state):
     color, rough, normal = triple(inputs["Color"]), scalar(inputs["Roughness"]), _normal(node, inputs)
     if node.prop("phong", False):
         return {"BSDF": _phong(ONES, node.label, np.zeros(3), color, rough, **normal)}
-    return {"BSDF": _closure("microfacet", ONES, node.label, fresnel="none", color=color, roughness=rough, **normal)}
+    return {"BSDF": _closure("microfacet", ONES, node.label, fresnel="none", color=color, roughness=rough,
+                             distribution=_distribution(node), **normal)}
 
 
 def _metallic_notes(node) -> list:
@@ -120,7 +138,7 @@ def metallic(node, inputs, state):
     if node.prop("phong", False):
         return {"BSDF": _phong(ONES, node.label, np.zeros(3), f0, rough, **normal)}
     return {"BSDF": _closure("microfacet", ONES, node.label, fresnel="f82", color=f0, tint=np.clip(tint, 0.0, 1.0),
-                             roughness=rough, **normal)}
+                             roughness=rough, distribution=_distribution(node), **normal)}
 
 
 def _refraction_notes(node) -> list:
@@ -134,7 +152,7 @@ def _glass(node, inputs, state):
     color = triple(inputs["Color"])
     return {"BSDF": _closure("dielectric", ONES, node.label, color=color, tint=color,
                              roughness=scalar(inputs["Roughness"]), ior=np.maximum(scalar(inputs["IOR"]), 1e-5),
-                             **_normal(node, inputs))}
+                             distribution=_distribution(node), **_normal(node, inputs))}
 
 
 glass = node("ShaderNodeBsdfGlass", "Shader", notes=_refraction_notes)(_glass)
@@ -153,7 +171,7 @@ def holdout(node, inputs, state):
 
 _PRINCIPLED_IGNORED = (("coat", "Coat Weight", 0.0), ("sheen", "Sheen Weight", 0.0),
                        ("subsurface", "Subsurface Weight", 0.0), ("anisotropy", "Anisotropic", 0.0),
-                       ("diffuse roughness", "Diffuse Roughness", 0.0), ("thin film", "Thin Film Thickness", 0.0))
+                       ("thin film", "Thin Film Thickness", 0.0))
 
 
 def _principled_notes(node) -> list:
@@ -184,6 +202,7 @@ def principled(node, inputs, state):
     spec_tint = np.maximum(triple(inputs["Specular Tint"]), 0.0)
     alpha = np.clip(scalar(inputs["Alpha"]), 0.0, 1.0)
     normal = _normal(node, inputs)
+    dist = _distribution(node)
     w = ONES
     out = _closure("transparent", w * column(1.0 - alpha), label + "/alpha", color=ONES)
     w = w * column(alpha)
@@ -202,17 +221,19 @@ def principled(node, inputs, state):
                         color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=ONES, roughness=rough, ior=ior, **normal)
         return {"BSDF": out + emission}
     out += _closure("microfacet", w * column(metal), label + "/metallic", fresnel="f82", color=np.clip(base, 0, 1),
-                    tint=np.minimum(spec_tint, 1.0), roughness=rough, **normal)
+                    tint=np.minimum(spec_tint, 1.0), roughness=rough, distribution=dist, **normal)
     w = w * column(1.0 - metal)
     out += _closure("dielectric", w * column(transmission), label + "/transmission",
-                    color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=ONES, roughness=rough, ior=ior, **normal)
+                    color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=ONES, roughness=rough, ior=ior, distribution=dist,
+                    **normal)
     w = w * column(1.0 - transmission)
     top = ()
     if np.ndim(eta) or eta != 1.0:
         top = _closure("microfacet", w, label + "/specular", fresnel="dielectric", tint=spec_tint,
-                       roughness=rough, ior=eta, **normal)
+                       roughness=rough, ior=eta, distribution=dist, **normal)
     layer = {"layer": top[0].tag} if top else {}
-    out += top + _closure("diffuse", w, label + "/base", color=base, **layer, **normal)
+    out += top + _diffuse(w, label + "/base", base, scalar(inputs["Diffuse Roughness"]) if "Diffuse Roughness" in inputs
+                          else 0.0, **layer, **normal)
     return {"BSDF": out + emission}
 
 

@@ -6,8 +6,10 @@ module here and one entry in LOBES; phase functions (volumes) have the same inte
     0     Diffuse       diffuse            diffuse                          never
     1     Phong         diffuse + glossy   glossy                           never
     2     Microfacet    glossy             glossy                           roughness <= 0.00376
+                        (GGX, Multiscatter GGX, Beckmann, Ashikhmin-Shirley)
     3     Dielectric    glossy + transmit  glossy / transmission            smooth or ior ~ 1
     4     Transparent   none               transmission                     always
+    5     OrenNayar     diffuse            diffuse                          never
 """
 from __future__ import annotations
 
@@ -19,10 +21,11 @@ from .dielectric import Dielectric
 from .diffuse import Diffuse
 from .henyey_greenstein import HenyeyGreenstein
 from .microfacet import Microfacet
+from .oren_nayar import OrenNayar
 from .phong import Phong
 from .transparent import Transparent
 
-LOBES: tuple[SurfaceLobe, ...] = (Diffuse(), Phong(), Microfacet(), Dielectric(), Transparent())
+LOBES: tuple[SurfaceLobe, ...] = (Diffuse(), Phong(), Microfacet(), Dielectric(), Transparent(), OrenNayar())
 assert [lobe.kind for lobe in LOBES] == list(range(LOBE_KINDS)), "LOBES is indexed by kind id"
 PHASE_FUNCTIONS: tuple[Lobe, ...] = (HenyeyGreenstein(),)
 

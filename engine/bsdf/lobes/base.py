@@ -33,7 +33,12 @@ ANALYSIS_CLASSES = ("diffuse", "glossy", "specular", "transparent")
 @dataclass
 class Params:
     """Parameters of K rows of one lobe kind, resolved at their shading points; every field of
-    a subclass is an array of K rows (float64 unless said otherwise)."""
+    a subclass is an array of K rows (float64 unless said otherwise). `adjoint` (not a field):
+    the closure carries light particles (photons) whose wo is the light's side, so a lobe that
+    is not reciprocal (Multiscatter GGX's factor of the viewing direction) evaluates its adjoint,
+    f(wi, wo)."""
+
+    adjoint = False
 
     def __len__(self) -> int:
         return len(getattr(self, dataclasses.fields(self)[0].name))
@@ -63,6 +68,10 @@ class Rows:
 
     def take(self, j: np.ndarray) -> Rows:
         return Rows(self._params, np.take(self._i, j))
+
+    @property
+    def adjoint(self) -> bool:
+        return self._params.adjoint
 
 
 @dataclass

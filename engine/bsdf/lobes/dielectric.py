@@ -6,15 +6,19 @@ the colour.
 The formulas want z pointing out of the object: at points seen from inside (wo behind the
 triangle's winding normal; the shading frame is on wo's side) the local frame is mirrored,
 so that wo.z < 0 and eta becomes 1 / eta. wo under the shading normal (smooth-normal
-silhouettes) has no glass lobe, as in Cycles."""
+silhouettes) has no glass lobe, as in Cycles.
+
+Rows of DIST_MULTI_GGX are scaled by Cycles' energy compensation for glass
+(engine/bsdf/multiscatter.py: the glass tables at the IOR relative to wo's side, Fss the
+refraction colour, or without one the reflection tint times the mean remapped Fresnel)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...scene import LOBE_DIELECTRIC, RAY_GLOSSY, RAY_TRANSMIT
-from .. import dielectric, fresnel, microfacet
+from ...scene import DIST_MULTI_GGX, LOBE_DIELECTRIC, RAY_GLOSSY, RAY_TRANSMIT
+from .. import dielectric, fresnel, microfacet, multiscatter
 from . import inputs
 from .base import CLASS_GLOSSY, CLASS_TRANSMISSION, LABEL_GLOSSY, LABEL_TRANSMIT, LobeSample, SurfaceLobe, SurfaceParams
 from .microfacet import blur, specular_layer_weight
@@ -25,13 +29,33 @@ _MIRROR_Z = np.array([1.0, 1.0, -1.0])  # the local frame seen from the other si
 @dataclass
 class DielectricParams(SurfaceParams):
     """tint (K,3) of reflection (colour: of refraction); roughness (K,); alpha (K,) GGX;
-    ior (K,) n_inside / n_outside; inside (K,) bool: wo behind the winding normal."""
+    ior (K,) n_inside / n_outside; inside (K,) bool: wo behind the winding normal; multi
+    (K,) bool: DIST_MULTI_GGX."""
 
     tint: np.ndarray
     roughness: np.ndarray
     alpha: np.ndarray
     ior: np.ndarray
     inside: np.ndarray
+    multi: np.ndarray
+
+
+def energy(p: DielectricParams, wo: np.ndarray, wi=None):
+    """(rows (R,) of DIST_MULTI_GGX, their (scale, darkening) (R,3)) at the viewing direction:
+    wo, or wi (where given) for the adjoint, the IOR relative to its side."""
+    r = np.flatnonzero(p.multi)
+    if not len(r):
+        return r, None, None
+    view = (wi if p.adjoint and wi is not None else wo)[r]
+    q, mu = p.take(r), np.clip(np.abs(view[:, 2]), 0.0, 1.0)
+    eta = np.where(q.inside ^ (view[:, 2] < 0), 1.0 / q.ior, q.ior)
+    Fss = np.maximum(q.color, 0.0)
+    dark = ~np.any(Fss > 0.0, axis=1)  # refraction left out: Cycles takes the reflection's
+    if dark.any():
+        Fss[dark] = q.tint[dark] * multiscatter.fss_remapped(fresnel.f0_from_ior(eta[dark])[:, None], eta[dark])
+    scale, darkening = multiscatter.factor(multiscatter.glass_E(q.roughness, mu, eta),
+                                           multiscatter.glass_E_avg(q.roughness, eta), Fss)
+    return r, scale, darkening
 
 
 def _outward(p: DielectricParams) -> np.ndarray:
@@ -64,14 +88,19 @@ class Dielectric(SurfaceLobe):
         alpha = microfacet.alpha_from_roughness(roughness)
         ior = inputs.ior(m, lobe, src)
         return DielectricParams(color=color, delta=dielectric.is_delta(alpha, ior), tint=inputs.tint(m, lobe, color, src),
-                                roughness=roughness, alpha=alpha, ior=ior, inside=inside[point])
+                                roughness=roughness, alpha=alpha, ior=ior, inside=inside[point],
+                                multi=m.lobe_distribution[lobe] == DIST_MULTI_GGX)
 
     def is_delta(self, p):
         return dielectric.is_delta(p.alpha, p.ior)
 
     def albedo(self, p, wo):
         F = fresnel.dielectric(np.abs(wo[:, 2]), p.ior)[:, None]
-        return F * p.tint + (1.0 - F) * p.color
+        a = F * p.tint + (1.0 - F) * p.color
+        r, _, darkening = energy(p, wo)
+        if len(r):
+            a[r] *= darkening
+        return a
 
     def eval(self, p, wo, wi):
         out = _outward(p)
@@ -79,6 +108,9 @@ class Dielectric(SurfaceLobe):
         reflected = ((wi[:, 2] > 0) == (wo[:, 2] > 0))[:, None]
         tint = np.where(reflected, p.tint, p.color) * (wo[:, 2:3] > 0)
         f = dielectric.eval_rough(p.alpha, p.ior, wo_o, wi_o) * tint
+        r, scale, _ = energy(p, wo, wi)
+        if len(r):
+            f[r] *= scale
         return f, np.where(wo[:, 2] > 0, dielectric.pdf_rough(p.alpha, p.ior, wo_o, wi_o), 0.0)
 
     def pdf(self, p, wo, wi):
@@ -100,6 +132,10 @@ class Dielectric(SurfaceLobe):
             d, s = np.flatnonzero(smooth), np.flatnonzero(~smooth)
             wi[d], weight[d], pdf[d] = _sample_smooth(p.take(d), wo[d], wo_o[d], out[d], u_branch[d])
             wi[s], pdf[s] = _sample_rough(p.take(s), wo[s], wo_o[s], out[s], u[s], u_branch[s])
+        if weight is not None:
+            r, scale, _ = energy(p, wo, wi)
+            if len(r):
+                weight[r] *= scale
         label = np.where(wi[:, 2] * wo[:, 2] < 0, LABEL_TRANSMIT, LABEL_GLOSSY)
         return LobeSample(wi=wi, pdf=pdf, delta=smooth, label=label, weight=weight, eta2=eta2)
 
@@ -119,6 +155,9 @@ class Dielectric(SurfaceLobe):
         # F tint reflects (glossy), (1 - F) colour refracts (transmission).
         F = fresnel.dielectric(np.abs(wo[:, 2]), p.ior)[:, None]
         reflected = weight * F * p.tint
+        r, _, darkening = energy(p, wo)
+        if len(r):
+            reflected[r] *= darkening
         return [(CLASS_GLOSSY, reflected), (CLASS_TRANSMISSION, estimate - reflected)]
 
     def stores_photons(self, m, lobe, min_roughness):

@@ -3,32 +3,54 @@ F D G2 / (4 cos_o cos_i), a perfect mirror when smooth (formulas: engine/bsdf/mi
 
 Its Fresnel colour F per FRESNEL_* model (Cycles' svm/closure.h): none (F = colour, Glossy
 BSDF), F82-tint conductor (f0 = colour, edge tint = tint; Principled metallic) and the exact
-dielectric Fresnel of ior remapped to F0(ior) tint .. 1 (Principled specular)."""
+dielectric Fresnel of ior remapped to F0(ior) tint .. 1 (Principled specular).
+
+Rows of DIST_MULTI_GGX (Blender's default distribution) are scaled by Cycles' energy
+compensation (engine/bsdf/multiscatter.py) with the mean Fresnel Fss of their model, the factor
+of wo applied to eval, to mirror samples' weights and to the albedo estimates. Rows of
+DIST_BECKMANN (Glossy and Metallic) use the Beckmann distribution (engine/bsdf/beckmann.py),
+rows of DIST_ASHIKHMIN_SHIRLEY (Glossy) Cycles' Ashikhmin-Shirley lobe
+(engine/bsdf/ashikhmin_shirley.py, its own alpha clamp and mirror threshold)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...scene import FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_MICROFACET, RAY_GLOSSY
+from ...scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82,
+                      LOBE_MICROFACET, RAY_GLOSSY)
 from ...vec import dot, normalize
-from .. import fresnel, layering, microfacet
+from .. import ashikhmin_shirley, beckmann, fresnel, layering, microfacet, multiscatter
 from . import inputs
 from .base import CLASS_GLOSSY, LABEL_GLOSSY, LobeSample, SurfaceLobe, SurfaceParams, mean_albedo
 
 _MIRROR_XY = np.array([-1.0, -1.0, 1.0])  # reflection about the normal
+# The formulas of each MicrofacetParams.model: GGX (also Multiscatter GGX), Beckmann, A-S.
+MODEL_GGX, MODEL_BECKMANN, MODEL_ASHIKHMIN = 0, 1, 2
+_MODELS = (microfacet, beckmann, ashikhmin_shirley)
+
+
+def _groups(p):
+    """[(formula module, its rows (R,) or None for all rows)] of the models present."""
+    model = p.model
+    if not model.any():
+        return [(microfacet, None)]
+    return [(_MODELS[k], np.flatnonzero(model == k)) for k in np.unique(model)]
 
 
 @dataclass
 class MicrofacetParams(SurfaceParams):
     """tint (K,3); roughness (K,) Blender's; alpha (K,) GGX (roughness^2, or Filter Glossy's);
-    ior (K,); fresnel (K,) FRESNEL_*."""
+    ior (K,); fresnel (K,) FRESNEL_*; multi (K,) bool: DIST_MULTI_GGX; model (K,) int8
+    MODEL_* (the formulas of the row's distribution)."""
 
     tint: np.ndarray
     roughness: np.ndarray
     alpha: np.ndarray
     ior: np.ndarray
     fresnel: np.ndarray
+    multi: np.ndarray
+    model: np.ndarray
 
 
 def fresnel_color(p: MicrofacetParams, cos: np.ndarray) -> np.ndarray:
@@ -44,11 +66,39 @@ def fresnel_color(p: MicrofacetParams, cos: np.ndarray) -> np.ndarray:
     return F
 
 
-def specular_layer_weight(p, wo: np.ndarray) -> np.ndarray:
+def mean_fresnel(p: MicrofacetParams) -> np.ndarray:
+    """Fss (K,3): the mean Fresnel Cycles' energy compensation takes per model."""
+    Fss = np.maximum(p.color, 0.0)  # FRESNEL_NONE: the Glossy colour
+    r = np.flatnonzero(p.fresnel == FRESNEL_F82)
+    if len(r):
+        f0 = np.clip(p.color[r], 0.0, 1.0)
+        Fss[r] = multiscatter.fss_f82(f0, fresnel.f82_b(f0, np.minimum(p.tint[r], 1.0)))
+    r = np.flatnonzero(p.fresnel == FRESNEL_DIELECTRIC)
+    if len(r):
+        eta = p.ior[r]
+        Fss[r] = multiscatter.fss_remapped(fresnel.f0_from_ior(eta)[:, None] * p.tint[r], eta)
+    return Fss
+
+
+def energy(p: MicrofacetParams, wo: np.ndarray, wi=None):
+    """(rows (R,) of DIST_MULTI_GGX, their (scale, darkening) (R,3)) at the viewing direction:
+    wo, or wi (where given) for the adjoint."""
+    r = np.flatnonzero(p.multi)
+    if not len(r):
+        return r, None, None
+    view = wi if p.adjoint and wi is not None else wo
+    q, mu = p.take(r), np.clip(view[r, 2], 0.0, 1.0)
+    scale, darkening = multiscatter.factor(multiscatter.E(q.roughness, mu), multiscatter.E_avg(q.roughness),
+                                           mean_fresnel(q))
+    return r, scale, darkening
+
+
+def specular_layer_weight(p, wo: np.ndarray, darkening=None) -> np.ndarray:
     """(K,) weight a dielectric specular layer (F0 = F0(ior) tint, roughness, ior) leaves to
-    the lobes under it: Cycles' albedo estimate from its table (engine/bsdf/layering.py)."""
+    the lobes under it: Cycles' albedo estimate from its table (engine/bsdf/layering.py), times
+    the energy compensation's darkening (K,3) where given."""
     f0 = fresnel.f0_from_ior(p.ior)[:, None] * p.tint
-    return layering.base_weight(f0, p.roughness, wo[:, 2], p.ior)
+    return layering.base_weight(f0, p.roughness, wo[:, 2], p.ior, darkening)
 
 
 def blur(p, min_alpha: np.ndarray, is_delta) -> None:
@@ -70,35 +120,82 @@ class Microfacet(SurfaceLobe):
         color = inputs.color(m, lobe, point, src)
         roughness = inputs.roughness(m, lobe, point, src)
         alpha = microfacet.alpha_from_roughness(roughness)
-        return MicrofacetParams(color=color, delta=microfacet.is_delta(alpha), tint=inputs.tint(m, lobe, color, src),
-                                roughness=roughness, alpha=alpha, ior=inputs.ior(m, lobe, src), fresnel=m.lobe_fresnel[lobe])
+        dist = m.lobe_distribution[lobe]
+        model = np.where(dist == DIST_BECKMANN, MODEL_BECKMANN,
+                         np.where(dist == DIST_ASHIKHMIN_SHIRLEY, MODEL_ASHIKHMIN, MODEL_GGX)).astype(np.int8)
+        a = np.flatnonzero(model == MODEL_ASHIKHMIN)
+        if len(a):
+            alpha[a] = ashikhmin_shirley.alpha(roughness[a])
+        p = MicrofacetParams(color=color, delta=np.zeros(len(lobe), bool), tint=inputs.tint(m, lobe, color, src),
+                             roughness=roughness, alpha=alpha, ior=inputs.ior(m, lobe, src), fresnel=m.lobe_fresnel[lobe],
+                             multi=dist == DIST_MULTI_GGX, model=model)
+        p.delta = self.is_delta(p)
+        return p
 
     def is_delta(self, p):
-        return microfacet.is_delta(p.alpha)
+        delta = microfacet.is_delta(p.alpha)
+        a = np.flatnonzero(p.model == MODEL_ASHIKHMIN)
+        if len(a):
+            delta[a] = ashikhmin_shirley.is_delta(p.alpha[a])
+        return delta
 
     def albedo(self, p, wo):
-        return fresnel_color(p, np.clip(wo[:, 2], 0.0, 1.0))
+        a = fresnel_color(p, np.clip(wo[:, 2], 0.0, 1.0))
+        r, _, darkening = energy(p, wo)
+        if len(r):
+            a[r] *= darkening
+        return a
 
     def eval(self, p, wo, wi):
         h = normalize(wo + wi)
         F = fresnel_color(p, np.clip(dot(wo, h), 0.0, 1.0))
-        return microfacet.eval_reflection(p.alpha, wo, wi, F), microfacet.pdf_reflection(p.alpha, wo, wi)
+        r, scale, _ = energy(p, wo, wi)
+        if len(r):
+            F[r] *= scale
+        groups = _groups(p)
+        if groups[0][1] is None:
+            return microfacet.eval_reflection(p.alpha, wo, wi, F), microfacet.pdf_reflection(p.alpha, wo, wi)
+        f, pdf = np.empty((len(p), 3)), np.empty(len(p))
+        for model, r in groups:
+            f[r] = model.eval_reflection(p.alpha[r], wo[r], wi[r], F[r])
+            pdf[r] = model.pdf_reflection(p.alpha[r], wo[r], wi[r])
+        return f, pdf
 
     def pdf(self, p, wo, wi):
-        return microfacet.pdf_reflection(p.alpha, wo, wi)
+        groups = _groups(p)
+        if groups[0][1] is None:
+            return microfacet.pdf_reflection(p.alpha, wo, wi)
+        pdf = np.empty(len(p))
+        for model, r in groups:
+            pdf[r] = model.pdf_reflection(p.alpha[r], wo[r], wi[r])
+        return pdf
+
+    def _sample_rough(self, p, wo, u):
+        """(wi, pdf) of rows that are not delta."""
+        groups = _groups(p)
+        if groups[0][1] is None:
+            return microfacet.sample_reflection(p.alpha, wo, u)[::2]
+        wi, pdf = np.empty((len(p), 3)), np.empty(len(p))
+        for model, r in groups:
+            wi[r], _, pdf[r] = model.sample_reflection(p.alpha[r], wo[r], u[r])
+        return wi, pdf
 
     def sample(self, p, wo, u, u_branch) -> LobeSample:
         delta = p.delta
         if not delta.any():
-            wi, _, pdf = microfacet.sample_reflection(p.alpha, wo, u)
+            wi, pdf = self._sample_rough(p, wo, u)
             return LobeSample(wi=wi, pdf=pdf, delta=delta, label=LABEL_GLOSSY)
         wi, weight, pdf = np.empty((len(p), 3)), np.zeros((len(p), 3)), np.ones(len(p))
         d, s = np.flatnonzero(delta), np.flatnonzero(~delta)
         # Mirror rows: F at wo, none under the shading normal.
         wi[d] = wo[d] * _MIRROR_XY
-        weight[d] = fresnel_color(p.take(d), np.clip(wo[d, 2], 0.0, 1.0)) * (wo[d, 2] > 0)[:, None]
+        q = p.take(d)
+        weight[d] = fresnel_color(q, np.clip(wo[d, 2], 0.0, 1.0)) * (wo[d, 2] > 0)[:, None]
+        r, scale, _ = energy(q, wo[d])
+        if len(r):
+            weight[d[r]] *= scale
         if len(s):
-            wi[s], _, pdf[s] = microfacet.sample_reflection(p.alpha[s], wo[s], u[s])
+            wi[s], pdf[s] = self._sample_rough(p.take(s), wo[s], u[s])
         return LobeSample(wi=wi, pdf=pdf, delta=delta, label=LABEL_GLOSSY, weight=weight)
 
     def drop_caustics(self, p, reflection, refraction):
@@ -108,7 +205,12 @@ class Microfacet(SurfaceLobe):
         blur(p, min_alpha, self.is_delta)
 
     def layer_weight(self, p, wo):
-        return specular_layer_weight(p, wo)
+        darkening = None
+        r, _, dark = energy(p, wo)
+        if len(r):
+            darkening = np.ones((len(p), 3))
+            darkening[r] = dark
+        return specular_layer_weight(p, wo, darkening)
 
     def stores_photons(self, m, lobe, min_roughness):
         return m.lobe_roughness[lobe] >= min_roughness

@@ -41,7 +41,7 @@ irradiance gradient (tested).
 """
 import numpy as np
 
-from ...scene import LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_PHONG
+from ...scene import LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG
 from . import harmonics
 from .hemisphere import _inverse_min_distance, _tangent, column_angles, row_angles
 
@@ -49,12 +49,13 @@ BSDF_SAMPLES = 16      # Q: BSDF samples per query projecting f_b (no rays)
 
 
 def cached_materials(m, order: int) -> np.ndarray:
-    """(M,) bool: materials whose whole BSDF is low-frequency for the basis: every lobe diffuse,
+    """(M,) bool: materials whose whole BSDF is low-frequency for the basis: every lobe diffuse
+    (Lambert or Oren-Nayar),
     Phong with n <= max_phong_exponent(order), or microfacet reflection with roughness >=
     min_roughness(order) (any Fresnel, layering allowed); no roughness or opacity texture, no
     transmission."""
     k = m.lobe_kind
-    low = k == LOBE_DIFFUSE
+    low = (k == LOBE_DIFFUSE) | (k == LOBE_OREN_NAYAR)
     low |= (k == LOBE_PHONG) & (m.lobe_exponent <= harmonics.max_phong_exponent(order))
     low |= (k == LOBE_MICROFACET) & (m.lobe_roughness >= harmonics.min_roughness(order))
     low &= (m.lobe_roughness_tex < 0) & (m.lobe_opacity_tex < 0)

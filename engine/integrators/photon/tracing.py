@@ -116,7 +116,7 @@ class PhotonTracer:
         """The photons' next bounce: the BSDF sampled in its adjoint form, Russian roulette
         with survival q = max(beta') / max(beta) (so max(flux) stays constant)."""
         bsdf = make_closure(self.scene, self.lambert_albedo, photons.mat, photons.ns, photons.ng, -photons.d,
-                            photons.prim, photons.bary, programs=self.programs, p=photons.p)
+                            photons.prim, photons.bary, programs=self.programs, p=photons.p, adjoint=True)
         u = sampler.get(FIRST_BOUNCE + photons.depth, photons.idx, 4)
         bs = bsdf.sample(u[:, :2], u[:, 2])
         w = bs.weight if bs.refraction_eta2 is None else scale(bs.weight, bs.refraction_eta2)
