@@ -564,4 +564,18 @@ MUTATIONS = [
          old="out[rows] = mp.evaluate(state)[1]",
          new="out[rows] = 1.03 * mp.evaluate(state)[1]",
          tests=["tests/test_nodes_state.py::test_materials_reading_the_state_render_as_cycles[light_path]"]),
+    # --- materials made by Blender's glTF importer ------------------------------------------
+    dict(name="gltf_separate_color_green_blue_swapped",
+         note="Separate Color gives Blue as Green and Green as Blue (a glTF metallic-roughness map's "
+              "roughness read as metal and back)",
+         file="engine/nodes/color.py",
+         old='return {"Red": scalar(x), "Green": scalar(y), "Blue": scalar(z)}',
+         new='return {"Red": scalar(x), "Green": scalar(z), "Blue": scalar(y)}',
+         tests=["tests/test_gltf_import.py"]),
+    dict(name="gltf_principled_emission_strength_dropped",
+         note="the Principled BSDF emits its Emission Color at strength 1 (the importer's emissive strength lost)",
+         file="engine/nodes/shaders.py",
+         old='emission = _closure("emission", w * triple(inputs["Emission Color"]) * column(inputs["Emission Strength"]),',
+         new='emission = _closure("emission", w * triple(inputs["Emission Color"]),',
+         tests=["tests/test_gltf_import.py"]),
 ]
