@@ -132,7 +132,7 @@ class Mesh:
 _LOBE_DEFAULTS = dict(kind=LOBE_DIFFUSE, weight=(1.0, 1.0, 1.0), color=(0.8, 0.8, 0.8), color_tex=-1,
                       color_sqrt=False, tint=(1.0, 1.0, 1.0), tint_is_color=False, roughness=0.5,
                       roughness_tex=-1, ior=1.5, fresnel=FRESNEL_NONE, exponent=1.0, layer=-1,
-                      opacity_tex=-1, opacity_invert=False)
+                      opacity_tex=-1, opacity_invert=False, multiscatter=False)
 _SLOT_DEFAULTS = dict(image=0, output=TEX_COLOR, extension=EXT_REPEAT, interpolation=INTERP_LINEAR,
                       transform=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)))
 
@@ -158,7 +158,9 @@ class Materials:
     lobe_ior (K,) (n_inside / n_outside); lobe_fresnel (K,) FRESNEL_*; lobe_exponent (K,)
     Phong n; lobe_layer (K,) the lobe this one lies under (it is scaled by 1 - that lobe's
     albedo, Cycles' closure layering; -1 none); lobe_opacity_tex (K,) slot whose scalar
-    value multiplies the weight (1 - value where lobe_opacity_invert): textured alpha.
+    value multiplies the weight (1 - value where lobe_opacity_invert): textured alpha;
+    lobe_multiscatter (K,) GGX reflection with Cycles' Multiscatter GGX energy factor
+    (engine/bsdf/multiscatter.py).
 
     Texture slots (S): tex_image (S,) image index, tex_output (S,) TEX_COLOR / TEX_ALPHA,
     tex_extension (S,) EXT_*, tex_interpolation (S,) INTERP_*, tex_transform (S,2,3) affine
@@ -197,6 +199,7 @@ class Materials:
     lobe_layer: np.ndarray = None
     lobe_opacity_tex: np.ndarray = None
     lobe_opacity_invert: np.ndarray = None
+    lobe_multiscatter: np.ndarray = None
     tex_image: np.ndarray = None
     tex_output: np.ndarray = None
     tex_extension: np.ndarray = None
@@ -217,6 +220,8 @@ class Materials:
             for f in fields(Materials):
                 if getattr(self, f.name) is None:
                     object.__setattr__(self, f.name, getattr(full, f.name))
+        elif self.lobe_multiscatter is None:  # a table saved before the field existed
+            object.__setattr__(self, "lobe_multiscatter", np.zeros(len(self.lobe_kind), bool))
 
     @property
     def n_lobes(self) -> int:
@@ -277,6 +282,7 @@ class Materials:
             lobe_layer=col("layer", np.int32),
             lobe_opacity_tex=col("opacity_tex", np.int32),
             lobe_opacity_invert=col("opacity_invert", bool),
+            lobe_multiscatter=col("multiscatter", bool),
             tex_image=np.array([s["image"] for s in slots], np.int32),
             tex_output=np.array([s["output"] for s in slots], np.int32),
             tex_extension=np.array([s["extension"] for s in slots], np.int32),

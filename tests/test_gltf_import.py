@@ -16,8 +16,7 @@ so the material is the importer's graph, whatever it puts between the images and
   quadrants' means agree within TOL plus the Sidak-corrected noise band (a t-test), and the
   relMSE of one mean image against the other is what the renders' noise explains.
 
-GGX is set on the imported Principled BSDF for both renderers: Cycles' default Multiscatter
-GGX is a different BSDF that Ember renders as single-scattering GGX.
+The imported Principled BSDF keeps the importer's distribution, Multiscatter GGX.
 """
 import math
 
@@ -252,7 +251,7 @@ def test_ember_exports_the_imported_material_without_warnings(gltf_file):
 # --- rendered ---------------------------------------------------------------------------------
 def _render_scene(path):
     ob, bsdf = _import(path)
-    bsdf.distribution = "GGX"
+    assert bsdf.distribution == "MULTI_GGX"
     sc = bpy.context.scene
     world = bpy.data.worlds.new("World")
     world.color = (0.05, 0.05, 0.06)

@@ -5,8 +5,8 @@ builds its closures (blender/blender intern/cycles/kernel/svm/closure.h):
 
   Diffuse BSDF       Color -> diffuse (Roughness > 0, Oren-Nayar: approximated as Lambert)
   Glossy BSDF        Color, Roughness -> GGX reflection with F = Color (no Fresnel, as Cycles);
-                     Multiscatter GGX is rendered as single-scattering GGX (slightly darker at
-                     high roughness), Beckmann / Ashikhmin-Shirley as GGX
+                     Multiscatter GGX as Cycles' energy factor on it (engine/bsdf/multiscatter.py),
+                     Beckmann / Ashikhmin-Shirley as GGX
   Metallic BSDF      Base Color (F0), Edge Tint (F82), Roughness -> GGX conductor (F82 tint);
                      Physical Conductor (IOR / Extinction) -> F82 with the IOR's F0
   Glass BSDF         Color, Roughness, IOR -> dielectric, exact Fresnel, sharp at roughness 0
@@ -384,13 +384,15 @@ class _Converter:
                 color, tex = np.array(GREY), -1
             self.add(w, kind=LOBE_DIFFUSE, color=tuple(color), color_tex=tex)
 
-    def distribution(self, node):
+    def distribution(self, node) -> dict:
+        """The lobe fields the node's distribution asks for (Multiscatter GGX's energy factor)."""
         dist = getattr(node, "distribution", "GGX")
         if dist not in ("GGX", "MULTI_GGX", "SHARP"):
             self.note(f"'{node.name}' {dist} distribution (rendered as GGX)")
+        return {"multiscatter": True} if dist == "MULTI_GGX" else {}
 
     def glossy(self, node, w):
-        self.distribution(node)
+        ms = self.distribution(node)
         color, tex = self.color(node, "Color")
         rough, rtex = self.value(node, "Roughness")
         if "Anisotropy" in node.inputs and (node.inputs["Anisotropy"].is_linked or node.inputs["Anisotropy"].default_value != 0):
@@ -400,10 +402,10 @@ class _Converter:
             self.phong_lobe(node, w, kd=np.zeros(3), ks=color, ks_tex=tex, rough=rough, rtex=rtex)
         else:
             self.add(w, kind=LOBE_MICROFACET, fresnel=FRESNEL_NONE, color=tuple(color), color_tex=tex,
-                     roughness=rough, roughness_tex=rtex)
+                     roughness=rough, roughness_tex=rtex, **ms)
 
     def metallic(self, node, w):
-        self.distribution(node)
+        ms = self.distribution(node)
         rough, rtex = self.value(node, "Roughness")
         self.normal_input(node)
         if getattr(node, "fresnel_type", "F82") == "F82":
@@ -422,7 +424,7 @@ class _Converter:
             self.phong_lobe(node, w, kd=np.zeros(3), ks=f0, ks_tex=tex, rough=rough, rtex=rtex)
         else:
             self.add(w, kind=LOBE_MICROFACET, fresnel=FRESNEL_F82, color=tuple(f0), color_tex=tex,
-                     tint=tuple(np.clip(tint, 0.0, 1.0)), roughness=rough, roughness_tex=rtex)
+                     tint=tuple(np.clip(tint, 0.0, 1.0)), roughness=rough, roughness_tex=rtex, **ms)
 
     def phong_lobe(self, node, w, kd, ks, ks_tex, rough, rtex, kd_tex=-1):
         """Phong lobe: kd may be textured (colour), ks only constant; kd + ks <= 1 enforced."""
@@ -439,7 +441,7 @@ class _Converter:
 
     def principled(self, node, w):
         """Cycles' Principled BSDF (svm/closure.h), top layer first."""
-        self.distribution(node)
+        ms = self.distribution(node)
         for label, key, default in (("coat", "Coat Weight", 0.0), ("sheen", "Sheen Weight", 0.0),
                                     ("subsurface", "Subsurface Weight", 0.0),
                                     ("anisotropy", "Anisotropic", 0.0),
@@ -494,7 +496,7 @@ class _Converter:
             return
         if metallic > CUTOFF:
             self.add(w * metallic, kind=LOBE_MICROFACET, fresnel=FRESNEL_F82, color=tuple(np.clip(base, 0, 1)),
-                     color_tex=btex, tint=tuple(np.minimum(spec_tint, 1.0)), **common)
+                     color_tex=btex, tint=tuple(np.minimum(spec_tint, 1.0)), **common, **ms)
         w = w * (1.0 - metallic)
         if transmission > CUTOFF:
             if not np.allclose(spec_tint, 1.0):
@@ -505,7 +507,7 @@ class _Converter:
         top = -1
         if eta != 1.0:
             top = self.add(w, kind=LOBE_MICROFACET, fresnel=FRESNEL_DIELECTRIC, ior=eta,
-                           tint=tuple(spec_tint), **common)
+                           tint=tuple(spec_tint), **common, **ms)
         self.add(w, kind=LOBE_DIFFUSE, color=tuple(base), color_tex=btex, layer=top, **opacity)
 
 

@@ -96,9 +96,14 @@ def schlick_factor(roughness: np.ndarray, cos_o: np.ndarray, eta: np.ndarray) ->
     return (1 - tz) * plane(zi) + tz * plane(zn)
 
 
-def base_weight(f0: np.ndarray, roughness: np.ndarray, cos_o: np.ndarray, eta: np.ndarray) -> np.ndarray:
+def base_weight(f0: np.ndarray, roughness: np.ndarray, cos_o: np.ndarray, eta: np.ndarray,
+                scale: np.ndarray | None = None) -> np.ndarray:
     """Weight (K,) left for the layers under a specular layer with F0 colour f0 (K,3):
-    clamp(1 - max_rgb(f0 + (1 - f0) s), 0, 1) (Cycles' closure_layering_weight)."""
+    clamp(1 - max_rgb(f0 + (1 - f0) s), 0, 1) (Cycles' closure_layering_weight); the albedo
+    times `scale` (K,3) where given (what the closure's weight carries besides, e.g. Multiscatter
+    GGX's energy factor)."""
     s = schlick_factor(roughness, cos_o, eta)[:, None]
     albedo = np.asarray(f0, np.float64) * (1.0 - s) + s
+    if scale is not None:
+        albedo = albedo * scale
     return np.clip(1.0 - albedo.max(axis=1), 0.0, 1.0)

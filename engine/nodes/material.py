@@ -180,6 +180,8 @@ def compile_material(graph: Graph) -> MaterialProgram:
             lobe["fresnel"] = FRESNEL_OF[c.params["fresnel"]]
         if "layer" in c.params:
             lobe["layer"] = tags[c.params["layer"]]
+        if c.params.get("multiscatter"):
+            lobe["multiscatter"] = True
         lobes.append(lobe)
         varying.append(tuple(names))
     emitters = [c.weight for c in made if c.kind == "emission"]

@@ -6,7 +6,8 @@ is its mixture weight and whose params are the lobe's inputs, per point or const
   color, tint (3), roughness (Blender's, alpha = roughness^2), ior, exponent (Phong),
   fresnel ("none", "f82", "dielectric": the microfacet lobe's model), normal (3, unnormalised
   world direction where the node's Normal is linked), layer (the tag of the closure this one
-  lies under: it keeps 1 - that lobe's albedo, Cycles' closure layering).
+  lies under: it keeps 1 - that lobe's albedo, Cycles' closure layering), multiscatter (a GGX
+  reflection with Cycles' Multiscatter GGX energy factor, engine/bsdf/multiscatter.py).
 Every closure has a tag unique within its node (the node's label and its part), so layers
 survive Mix and Add Shader. A closure of constant weight at most CUTOFF is left out, as Cycles
 leaves out closures lighter than CLOSURE_WEIGHT_CUTOFF.
@@ -77,6 +78,11 @@ def _distribution_notes(node) -> list:
     return [] if dist in ("GGX", "MULTI_GGX", "SHARP") else [f"{dist} distribution rendered as GGX"]
 
 
+def _multiscatter(node) -> dict:
+    """{"multiscatter": True} where the node asks for Multiscatter GGX (Blender's default)."""
+    return {"multiscatter": True} if node.prop("distribution", "GGX") == "MULTI_GGX" else {}
+
+
 def _diffuse_notes(node) -> list:
     return ["Oren-Nayar roughness rendered Lambertian"] if _linked_or_set(node, "Roughness", 0.0) else []
 
@@ -98,7 +104,8 @@ def glossy(node, inputs, state):
     color, rough, normal = triple(inputs["Color"]), scalar(inputs["Roughness"]), _normal(node, inputs)
     if node.prop("phong", False):
         return {"BSDF": _phong(ONES, node.label, np.zeros(3), color, rough, **normal)}
-    return {"BSDF": _closure("microfacet", ONES, node.label, fresnel="none", color=color, roughness=rough, **normal)}
+    return {"BSDF": _closure("microfacet", ONES, node.label, fresnel="none", color=color, roughness=rough,
+                             **_multiscatter(node), **normal)}
 
 
 def _metallic_notes(node) -> list:
@@ -120,7 +127,7 @@ def metallic(node, inputs, state):
     if node.prop("phong", False):
         return {"BSDF": _phong(ONES, node.label, np.zeros(3), f0, rough, **normal)}
     return {"BSDF": _closure("microfacet", ONES, node.label, fresnel="f82", color=f0, tint=np.clip(tint, 0.0, 1.0),
-                             roughness=rough, **normal)}
+                             roughness=rough, **_multiscatter(node), **normal)}
 
 
 def _refraction_notes(node) -> list:
@@ -202,7 +209,7 @@ def principled(node, inputs, state):
                         color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=ONES, roughness=rough, ior=ior, **normal)
         return {"BSDF": out + emission}
     out += _closure("microfacet", w * column(metal), label + "/metallic", fresnel="f82", color=np.clip(base, 0, 1),
-                    tint=np.minimum(spec_tint, 1.0), roughness=rough, **normal)
+                    tint=np.minimum(spec_tint, 1.0), roughness=rough, **_multiscatter(node), **normal)
     w = w * column(1.0 - metal)
     out += _closure("dielectric", w * column(transmission), label + "/transmission",
                     color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=ONES, roughness=rough, ior=ior, **normal)
@@ -210,7 +217,7 @@ def principled(node, inputs, state):
     top = ()
     if np.ndim(eta) or eta != 1.0:
         top = _closure("microfacet", w, label + "/specular", fresnel="dielectric", tint=spec_tint,
-                       roughness=rough, ior=eta, **normal)
+                       roughness=rough, ior=eta, **_multiscatter(node), **normal)
     layer = {"layer": top[0].tag} if top else {}
     out += top + _closure("diffuse", w, label + "/base", color=base, **layer, **normal)
     return {"BSDF": out + emission}

@@ -3,7 +3,10 @@ F D G2 / (4 cos_o cos_i), a perfect mirror when smooth (formulas: engine/bsdf/mi
 
 Its Fresnel colour F per FRESNEL_* model (Cycles' svm/closure.h): none (F = colour, Glossy
 BSDF), F82-tint conductor (f0 = colour, edge tint = tint; Principled metallic) and the exact
-dielectric Fresnel of ior remapped to F0(ior) tint .. 1 (Principled specular)."""
+dielectric Fresnel of ior remapped to F0(ior) tint .. 1 (Principled specular). Where the node
+asked for Multiscatter GGX, the lobe is scaled by Cycles' energy factor (engine/bsdf/multiscatter.py),
+and what is estimated from it (its selection weight, the layer weight it leaves the diffuse
+base) sees its albedo times c E, as Cycles' closure weight carries that factor."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -12,7 +15,7 @@ import numpy as np
 
 from ...scene import FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_MICROFACET, RAY_GLOSSY
 from ...vec import dot, normalize
-from .. import fresnel, layering, microfacet
+from .. import fresnel, layering, microfacet, multiscatter
 from . import inputs
 from .base import CLASS_GLOSSY, LABEL_GLOSSY, LobeSample, SurfaceLobe, SurfaceParams, mean_albedo
 
@@ -22,13 +25,14 @@ _MIRROR_XY = np.array([-1.0, -1.0, 1.0])  # reflection about the normal
 @dataclass
 class MicrofacetParams(SurfaceParams):
     """tint (K,3); roughness (K,) Blender's; alpha (K,) GGX (roughness^2, or Filter Glossy's);
-    ior (K,); fresnel (K,) FRESNEL_*."""
+    ior (K,); fresnel (K,) FRESNEL_*; multiscatter (K,) bool."""
 
     tint: np.ndarray
     roughness: np.ndarray
     alpha: np.ndarray
     ior: np.ndarray
     fresnel: np.ndarray
+    multiscatter: np.ndarray
 
 
 def fresnel_color(p: MicrofacetParams, cos: np.ndarray) -> np.ndarray:
@@ -44,11 +48,40 @@ def fresnel_color(p: MicrofacetParams, cos: np.ndarray) -> np.ndarray:
     return F
 
 
+def fresnel_average(p: MicrofacetParams) -> np.ndarray:
+    """Fss (K,3): the hemispherical average of each row's Fresnel colour, as Cycles estimates
+    it per model (the Glossy colour itself, F82-tint's closed form, the remapped dielectric's
+    fit)."""
+    fss = p.color.copy()
+    r = np.flatnonzero(p.fresnel == FRESNEL_F82)
+    if len(r):
+        fss[r] = multiscatter.f82_average(p.color[r], np.minimum(p.tint[r], 1.0))
+    r = np.flatnonzero(p.fresnel == FRESNEL_DIELECTRIC)
+    if len(r):
+        fss[r] = multiscatter.remapped_dielectric_average(fresnel.f0_from_ior(p.ior[r])[:, None] * p.tint[r], p.ior[r])
+    return fss
+
+
+def energy_factor(p: MicrofacetParams, wo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(c (K,3), c E (K,3)): the Multiscatter GGX factor on the lobe and on what is estimated
+    from its albedo; ones where the lobe is single-scattering."""
+    c = np.ones((len(p), 3))
+    cE = np.ones((len(p), 3))
+    rows = np.flatnonzero(p.multiscatter)
+    if len(rows):
+        q = p.take(rows)
+        c[rows], E = multiscatter.compensation(fresnel_average(q), q.roughness, np.clip(wo[rows, 2], 0.0, 1.0))
+        cE[rows] = c[rows] * E[:, None]
+    return c, cE
+
+
 def specular_layer_weight(p, wo: np.ndarray) -> np.ndarray:
     """(K,) weight a dielectric specular layer (F0 = F0(ior) tint, roughness, ior) leaves to
     the lobes under it: Cycles' albedo estimate from its table (engine/bsdf/layering.py)."""
     f0 = fresnel.f0_from_ior(p.ior)[:, None] * p.tint
-    return layering.base_weight(f0, p.roughness, wo[:, 2], p.ior)
+    # A glass lobe (engine/bsdf/lobes/dielectric.py) has no Multiscatter factor.
+    scale = energy_factor(p, wo)[1] if getattr(p, "multiscatter", None) is not None else None
+    return layering.base_weight(f0, p.roughness, wo[:, 2], p.ior, scale)
 
 
 def blur(p, min_alpha: np.ndarray, is_delta) -> None:
@@ -71,17 +104,18 @@ class Microfacet(SurfaceLobe):
         roughness = inputs.roughness(m, lobe, point, src)
         alpha = microfacet.alpha_from_roughness(roughness)
         return MicrofacetParams(color=color, delta=microfacet.is_delta(alpha), tint=inputs.tint(m, lobe, color, src),
-                                roughness=roughness, alpha=alpha, ior=inputs.ior(m, lobe, src), fresnel=m.lobe_fresnel[lobe])
+                                roughness=roughness, alpha=alpha, ior=inputs.ior(m, lobe, src), fresnel=m.lobe_fresnel[lobe],
+                                multiscatter=m.lobe_multiscatter[lobe])
 
     def is_delta(self, p):
         return microfacet.is_delta(p.alpha)
 
     def albedo(self, p, wo):
-        return fresnel_color(p, np.clip(wo[:, 2], 0.0, 1.0))
+        return fresnel_color(p, np.clip(wo[:, 2], 0.0, 1.0)) * energy_factor(p, wo)[1]
 
     def eval(self, p, wo, wi):
         h = normalize(wo + wi)
-        F = fresnel_color(p, np.clip(dot(wo, h), 0.0, 1.0))
+        F = fresnel_color(p, np.clip(dot(wo, h), 0.0, 1.0)) * energy_factor(p, wo)[0]
         return microfacet.eval_reflection(p.alpha, wo, wi, F), microfacet.pdf_reflection(p.alpha, wo, wi)
 
     def pdf(self, p, wo, wi):
