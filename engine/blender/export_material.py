@@ -308,7 +308,8 @@ class _Converter:
         if src.uv_map:  # the tangents of the render UV map only here (the node evaluator reads any)
             self.note(f"'{src.name}' on UV map '{src.uv_map}' (read as the render UV map)")
         color, slot = self.color(src, "Color")
-        if slot < 0:
+        if slot < 0:  # a constant colour still tilts the normal: only the node evaluator has it
+            self.note(f"'{src.name}' without an image (ignored)")
             return
         strength = self.constant(src, "Strength")
         if self.normal is not None and self.normal != (slot, strength):

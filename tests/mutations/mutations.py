@@ -590,4 +590,17 @@ MUTATIONS = [
          old="    fss = np.asarray(fss, np.float64)",
          new="    fss = np.ones_like(np.asarray(fss, np.float64))",
          tests=["tests/test_multiscatter.py"]),
+    dict(name="bump_shadowing_softening_dropped",
+         note="a normal-mapped diffuse lobe's light not softened towards grazing (Cycles' bump shadowing term)",
+         file="engine/bsdf/closure.py",
+         old="        diffuse_factor = factor * np.where(soft, g, 1.0)",
+         new="        diffuse_factor = factor",
+         tests=["tests/test_bump_shadowing.py"]),
+    dict(name="constant_normal_map_ignored",
+         note="a Normal Map node of constant colour left out (the flat normal)",
+         file="engine/blender/export_material.py",
+         old="""            self.note(f"'{src.name}' without an image (ignored)")
+            return""",
+         new="""            return""",
+         tests=["tests/test_bump_shadowing.py"]),
 ]
