@@ -399,8 +399,15 @@ class _Stop:
             timer.start()
 
     def abort(self) -> None:
-        """End the process now, without leaving a temporary output file behind."""
+        """End the process now, without leaving a temporary output file or a shared-memory
+        segment behind."""
         self._say()
+        shared = sys.modules.get("ember.engine.parallel.shared")  # no import here: another thread may hold its lock
+        if shared is not None:
+            try:
+                shared.unlink_all()
+            except Exception:
+                pass
         if self.output is not None:
             try:
                 from ember.engine import imageio

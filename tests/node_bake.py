@@ -23,6 +23,8 @@ path state.
 """
 from __future__ import annotations
 
+import json
+import os
 from dataclasses import dataclass
 from typing import Callable
 
@@ -475,7 +477,22 @@ def bake(cases: dict, size: int = SIZE, view_from: str = "ABOVE_SURFACE", column
         ember = np.zeros((size * size, 3))
         ember[surface.covered] = evaluate(out, ShadingState(surface.n, source=surface))
         results[name] = (cycles, ember)
+    log_conformance(results)
     return results
+
+
+def log_conformance(results: dict) -> None:
+    """With EMBER_CONFORMANCE_LOG set to a file, append a line per case: its name, the share of
+    texels in agreement and the largest difference (bench/nodes_conformance.py tabulates them)."""
+    path = os.environ.get("EMBER_CONFORMANCE_LOG")
+    if not path:
+        return
+    test = os.environ.get("PYTEST_CURRENT_TEST", "").split(" ")[0]
+    with open(path, "a", encoding="utf-8") as f:
+        for name, (cycles, ember) in results.items():
+            diff = float(np.max(np.abs(cycles - ember))) if len(cycles) else 0.0
+            f.write(json.dumps({"test": test, "case": str(name), "agreement": agreement(cycles, ember),
+                                "max_diff": diff, "max_value": float(np.max(np.abs(cycles)))}) + "\n")
 
 
 def evaluate(output_node, state: ShadingState) -> np.ndarray:

@@ -303,3 +303,28 @@ def test_veach_blend_renders_its_plates_with_phong():
     assert m.lobe_kind[plates].tolist() == [S.LOBE_PHONG] * 4
     np.testing.assert_allclose(m.lobe_exponent[plates], [19998, 798, 198, 30], rtol=1e-5)
     assert sc.settings.max_depth == 1 and warnings == []
+
+
+@pytest.mark.parametrize("hidden_from", ["Is Camera Ray", "Is Shadow Ray"], ids=["camera", "shadow"])
+def test_an_emitter_hidden_from_some_rays_still_emits(hidden_from):
+    """Emission mixed to black by a Light Path output (black to camera rays, as the caustic
+    reference scenes make their lamp): the material still emits, so light sampling and rays
+    other than those find it; its program says where."""
+    new_scene()
+
+    def build(nodes, links, out):
+        em = nodes.new("ShaderNodeEmission")
+        em.inputs["Strength"].default_value = 4.0
+        black = nodes.new("ShaderNodeEmission")
+        black.inputs["Strength"].default_value = 0.0
+        path = nodes.new("ShaderNodeLightPath")
+        mix = nodes.new("ShaderNodeMixShader")
+        links.new(path.outputs[hidden_from], mix.inputs["Fac"])
+        links.new(em.outputs[0], mix.inputs[1])
+        links.new(black.outputs[0], mix.inputs[2])
+        links.new(mix.outputs[0], out.inputs["Surface"])
+
+    sc, warnings, _ = export_with(material("Lamp", build))
+    np.testing.assert_allclose(sc.materials.emission[0], [4.0, 4.0, 4.0], rtol=1e-6)
+    assert sc.materials.graphs and sc.materials.graphs[0] is not None
+    assert warnings == []

@@ -122,7 +122,7 @@ def test_sample_pdf_is_what_a_hit_reports(ls):
     v = s.target[tri] - p[tri]
     t = np.linalg.norm(v, axis=1)
     cos = np.abs(np.sum(s.wi[tri] * ls.tri_ng[ls.light_of_prim[s.target_prim[tri]] - ls.n_analytic], axis=1))
-    np.testing.assert_allclose(ls.pdf_triangle_hit(s.target_prim[tri], p[tri], t, cos), s.pdf[tri], rtol=1e-6)
+    np.testing.assert_allclose(ls.pdf_triangle_hit(s.target_prim[tri], p[tri], t, cos, None), s.pdf[tri], rtol=1e-6)
     checked = 0
     for i in ls.hittable.tolist():
         h = shapes.hit_analytic(int(ls.lights.kind[i]), ls.lights, i, p, s.wi, np.full(n, np.inf))

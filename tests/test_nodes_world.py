@@ -22,11 +22,10 @@ from ember.engine.accel import Accel
 from ember.engine.lights import world as world_mod
 from ember.engine.lights.light_set import LightSet
 from ember.engine.lights.world import Background, WorldMap, map_size, world_emitters
-from ember.engine.nodes import base as nodes_base
-from ember.engine.nodes import registry, state as state_mod
+from ember.engine.nodes import light_path as lp, registry, state as state_mod
+from ember.engine.nodes.hits import RayState
 from ember.engine.nodes.graph import Graph, Input, Link, Node
-from ember.engine.scene import (RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, Lights, Materials, Scene, World, scene_from_plain,
-                                to_plain)
+from ember.engine.scene import Lights, Materials, Scene, World, scene_from_plain, to_plain
 from ember.engine.session import RenderSession
 
 from core_scenes import perspective, quads_mesh, settings
@@ -295,27 +294,6 @@ def test_world_graph_survives_save_load_and_the_worker_handover(tmp_path):
 
 # ---- Light Path in a world: the path state of escaped rays --------------------------------------
 
-@pytest.fixture
-def light_path_stub(monkeypatch):
-    """A stand-in Light Path node reading the path state as the real one does (Cycles'
-    svm_node_light_path), until engine/nodes/light_path.py arrives: Is Camera Ray, Is Diffuse
-    Ray, Ray Depth."""
-    fields = set(state_mod.FIELDS) | world_mod.PATH_FIELDS
-    monkeypatch.setattr(state_mod, "FIELDS", tuple(fields))
-
-    def evaluate(node, inputs, state):
-        flags = lambda: np.asarray(state.path_flag).astype(np.uint32)  # noqa: E731
-        return {"Is Camera Ray": lambda: ((flags() & world_mod.PATH_CAMERA) != 0).astype(float),
-                "Is Diffuse Ray": lambda: ((flags() & world_mod.PATH_DIFFUSE) != 0).astype(float),
-                "Ray Depth": lambda: np.asarray(state.bounce, float) + ((flags() & world_mod.PATH_EMISSION) != 0)}
-
-    reads = {"Is Camera Ray": ("path_flag",), "Is Diffuse Ray": ("path_flag",), "Ray Depth": ("bounce", "path_flag")}
-    kind = nodes_base.NodeType("ShaderNodeLightPath", "Input", evaluate, reads)
-    if "ShaderNodeLightPath" not in registry.REGISTRY:
-        monkeypatch.setitem(registry.REGISTRY, "ShaderNodeLightPath", kind)
-    yield
-
-
 def camera_trick_graph(output="Is Camera Ray") -> Graph:
     """Mix Shader by a Light Path output: 0 -> a blue background of 0.5, 1 -> red of 2."""
     lp = _node("ShaderNodeLightPath", "Light Path", [], [(output, "value")])
@@ -328,27 +306,32 @@ def camera_trick_graph(output="Is Camera Ray") -> Graph:
     return _world(lp, a, b, mix, surface=3, socket="Shader")
 
 
-def test_escaped_rays_read_their_path_state(light_path_stub):
+def test_escaped_rays_read_their_path_state():
     world = World(color=np.ones(3), graph=(camera_trick_graph(),))
     ls = LightSet(Lights.make([]), *_no_geometry(), world, Accel(_no_geometry()[0]), 1.0)
-    assert ls.world_reads_path and not ls.world_reads_bounces and ls.env is None  # lighting: constant blue
+    assert ls.world_reads == {"path_flag"} and ls.env is None  # lighting: constant blue
     np.testing.assert_allclose(ls.world, [0.0, 0.0, 0.5])  # what photons and the table see
     d = unit(4, 2)
-    kinds = np.array([RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_CAMERA], np.uint8)
-    L = ls.escaped(d, np.ones(4), np.zeros(4, bool), kinds == RAY_CAMERA, kinds)
+    flags = np.array([lp.CAMERA, lp.REFLECT | lp.DIFFUSE, lp.REFLECT | lp.GLOSSY, lp.CAMERA], np.uint32)
+    camera = flags == lp.CAMERA
+    L = ls.escaped(d, np.ones(4), np.zeros(4, bool), camera, None, RayState(flags))
     np.testing.assert_allclose(L, [[2, 0, 0], [0, 0, 0.5], [0, 0, 0.5], [2, 0, 0]])
-    # Kinds untracked (photon gathers): camera rays by `camera`, the others diffuse.
+    # Paths untracked (photon gathers): camera rays by `camera`, the others diffuse.
     L = ls.escaped(d, np.ones(4), np.zeros(4, bool), np.array([True, False, False, True]))
     np.testing.assert_allclose(L[:, 0], [2, 0, 0, 2])
 
 
-def test_path_flags_follow_cycles():
-    flags = world_mod.path_flags(np.array([RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY], np.uint8))
-    assert list(flags) == [1 | 1 << 20, 2 | 8 | 1 << 20, 2 | 16 | 1 << 20]
-    assert list(world_mod.path_flags(None, np.array([True, False]))) == [1 | 1 << 20, 2 | 8 | 1 << 20]
+def test_escaped_rays_and_light_samples_add_the_emission_flag():
+    """Cycles evaluates the background with PATH_RAY_EMISSION added to the ray's flags, and a
+    light sample with that flag alone and the path's counts."""
+    ray = RayState(np.array([lp.CAMERA, lp.REFLECT | lp.GLOSSY], np.uint32), np.array([0, 3]))
+    assert list(ray.escaped().flag) == [lp.CAMERA | lp.EMISSION, lp.REFLECT | lp.GLOSSY | lp.EMISSION]
+    assert list(ray.escaped().bounce) == [0, 3]
+    sample = ray.for_emission()
+    assert sample.flag == lp.EMISSION and list(sample.bounce) == [0, 3]
 
 
-def test_camera_sees_one_world_and_the_plane_another(light_path_stub):
+def test_camera_sees_one_world_and_the_plane_another():
     """The render: background pixels red (2, 0, 0), the plane lit by the blue world only
     (its radiance: albedo 0.5 x 0.5 = 0.25 in blue)."""
     world = World(color=np.ones(3), graph=(camera_trick_graph(),))
@@ -362,22 +345,20 @@ def test_camera_sees_one_world_and_the_plane_another(light_path_stub):
     np.testing.assert_allclose(centre, [0.0, 0.0, 0.25], rtol=0.02, atol=1e-6)
 
 
-def test_ray_depth_reads_the_paths_bounces(light_path_stub):
-    """Ray Depth in a world: the path's bounces + 1 (PATH_RAY_EMISSION); a Bounces handed to
+def test_ray_depth_reads_the_paths_bounces():
+    """Ray Depth in a world: the path's bounces + 1 (PATH_RAY_EMISSION); a RayState handed to
     escaped() gives them, and the tracer keeps the counts when the world reads them."""
     world = World(color=np.ones(3), graph=(camera_trick_graph("Ray Depth"),))
     ls = LightSet(Lights.make([]), *_no_geometry(), world, Accel(_no_geometry()[0]), 1.0)
-    assert ls.world_reads_bounces
+    assert ls.world_reads == {"bounce", "path_flag"}
 
-    from ember.engine.integrators.path_state import Bounces
-    b = Bounces.start(3, 8, ray=True)
-    b.total = np.array([0, 1, 2], np.int32)
-    L = ls.escaped(unit(3, 5), np.ones(3), np.zeros(3, bool), np.array([True, False, False]),
-                   np.array([RAY_CAMERA, RAY_DIFFUSE, RAY_DIFFUSE], np.uint8), b)
+    ray = RayState(np.array([lp.CAMERA, lp.REFLECT | lp.DIFFUSE, lp.REFLECT | lp.DIFFUSE], np.uint32),
+                   np.array([0, 1, 2]))
+    L = ls.escaped(unit(3, 5), np.ones(3), np.zeros(3, bool), np.array([True, False, False]), None, ray)
     # Fac = depth + 1 clamped to [0, 1] by the Mix Shader: 1 everywhere -> red x 2.
     np.testing.assert_allclose(L[:, 0], 2.0)
     L0 = ls.escaped(unit(3, 5), np.ones(3), np.zeros(3, bool), np.zeros(3, bool), None, None)
-    np.testing.assert_allclose(L0[:, 0], 2.0)  # no bounces given: depth 0 + 1
+    np.testing.assert_allclose(L0[:, 0], 2.0)  # no path given: depth 0 + 1
 
 
 def _no_geometry():

@@ -62,3 +62,21 @@ def test_cancel_stops_items_in_flight_and_keeps_the_workers():
         assert pool.submit(small, 0).result(timeout=60)[0].shape == (64, 3)
     finally:
         pool.close(kill=True)
+
+
+def test_an_abrupt_exit_leaves_no_segment_behind():
+    """What render.py's abort (os._exit after a signal) runs first: every segment this process
+    created and still owns is unlinked, the ones already released are not touched."""
+    import os
+    from ember.engine.parallel import shared
+    publisher = Publisher()
+    name, _ = publisher.publish({"a": np.arange(10.0)})
+    pool_counter = shared.create(8)
+    released = shared.create(8)
+    shared.unlink(released)
+    assert {name, pool_counter.name} <= set(shared._OWNED) and released.name not in shared._OWNED
+    shared.unlink_all()
+    assert not shared._OWNED
+    for segment in (name, pool_counter.name):
+        assert not os.path.exists(f"/dev/shm/{segment.lstrip('/')}")
+    publisher.release()  # nothing left to do, and no error

@@ -105,7 +105,9 @@ def bake_world(build, views=CUBE, size: int = 32) -> tuple:
               .reshape(-1, 3) for k in range(len(views))]
     P = np.concatenate(positions)
     directions = P / np.linalg.norm(P, axis=1, keepdims=True)
-    return np.concatenate(cycles), evaluate(out, directions), directions
+    cycles, ember = np.concatenate(cycles), evaluate(out, directions)
+    node_bake.log_conformance({"world": (cycles, ember)})
+    return cycles, ember, directions
 
 
 def evaluate(output_node, directions: np.ndarray) -> np.ndarray:

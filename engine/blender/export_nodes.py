@@ -1,8 +1,8 @@
 """A bpy node tree -> engine.nodes.graph.Graph: flat, plain data the core compiles.
 
 Walks back from the requested output sockets, so only what reaches them is exported, and
-resolves on the way what Blender's own evaluation resolves: reroutes; muted links (nothing
-arrives) and muted nodes (each output passes the input Blender's internal links give it, else
+resolves on the way what Blender's own evaluation resolves: reroutes; muted links (the input
+reads its own value, as unlinked) and muted nodes (each output passes the input Blender's internal links give it, else
 its type's zero); node groups at any depth (a group's output is the inner Group Output's input,
 an inner Group Input's output the group node's input outside), so the core never sees a group.
 A node's settings become plain props: every enum, number, boolean, string and vector property
@@ -195,23 +195,20 @@ class _Export:
             self.warn(f"node links nest deeper than {MAX_DEPTH} levels at '{socket.node.name}'")
             return me
         links = [l for l in socket.links if not getattr(l, "is_muted", False) and getattr(l, "is_valid", True)]
-        if not socket.is_linked:
+        if not links:  # unlinked, or its links muted or invalid
             return me
-        if not links:  # a muted link: nothing arrives, as Blender evaluates it
-            return Input(me.name, me.type, _zero(me.type))
         return self.output(links[0].from_socket, path, me, depth + 1)
 
     def output(self, out, path: tuple, into: Input, depth: int) -> Input:
         """The value of output socket `out` as seen by input `into`."""
         node = out.node
         if node.bl_idname == "NodeReroute":
-            return self.source(node.inputs[0], path, depth)
+            return _arriving(into, self.source(node.inputs[0], path, depth))
         if node.mute:
             for link in node.internal_links:
                 if link.to_socket == out:
                     inner = self.source(link.from_socket, path, depth)
-                    return Input(into.name, into.type, inner.value, inner.link) if inner.link else \
-                        Input(into.name, into.type, _convert_const(inner.value, inner.type, into.type))
+                    return _arriving(into, inner)
             return Input(into.name, into.type, _zero(into.type))
         if node.bl_idname in _GROUP_KINDS:
             tree = node.node_tree
@@ -222,8 +219,7 @@ class _Export:
             if socket is None:
                 return Input(into.name, into.type, _zero(into.type))
             inner = self.source(socket, path + (node,), depth)
-            return Input(into.name, into.type, inner.value, inner.link) if inner.link else \
-                Input(into.name, into.type, _convert_const(inner.value, inner.type, into.type))
+            return _arriving(into, inner)
         if node.bl_idname == "NodeGroupInput":
             if not path:
                 return Input(into.name, into.type, _zero(into.type))
@@ -232,8 +228,7 @@ class _Export:
             if socket is None:
                 return Input(into.name, into.type, _zero(into.type))
             inner = self.source(socket, path[:-1], depth)
-            return Input(into.name, into.type, inner.value, inner.link) if inner.link else \
-                Input(into.name, into.type, _convert_const(inner.value, inner.type, into.type))
+            return _arriving(into, inner)
         if node.bl_idname == "ShaderNodeAttribute" and node.attribute_type == "VIEW_LAYER":
             return Input(into.name, into.type, _view_layer_value(node, out, into.type))
         i = self.add(node, path, depth)
@@ -251,6 +246,14 @@ class _Export:
         self.nodes.append(Node(node.bl_idname, label, props, inputs, outputs))
         self.index[key] = len(self.nodes) - 1
         return self.index[key]
+
+
+def _arriving(into: Input, inner: Input) -> Input:
+    """What arrives at input `into` through a reroute, muted node or group socket: inner's link,
+    or its constant converted to into's type."""
+    if inner.link:
+        return Input(into.name, into.type, inner.value, inner.link)
+    return Input(into.name, into.type, _convert_const(inner.value, inner.type, into.type))
 
 
 def _view_layer_value(node, out, into_type: str):

@@ -29,7 +29,7 @@ from ..accel import Accel, offset_origin
 from ..bsdf.closure import LABEL_TRANSPARENT
 from ..bsdf.fast_path import make_closure, plain_lambert_albedo
 from ..nodes import light_path as lp
-from ..nodes.hits import camera_differentials, camera_footprint
+from ..nodes.hits import COUNT_FIELDS, camera_differentials, camera_footprint
 from ..nodes.material import MaterialPrograms
 from ..errors import Cancelled
 from ..lights.light_set import LightSet
@@ -43,9 +43,6 @@ from .path_options import CAMERA_PATHS, Clamp, ClosureOptions, Gather, LightPath
 from .path_state import PathState, rows_of
 from .surface import emitted, flat_frame_rows, flat_frames, flat_normals, shading_frame, towards
 from ..layout import BatchLayout
-
-# The bounce counts a Light Path node may read (engine/nodes/state.py).
-_COUNTS = frozenset(("bounce", "diffuse_bounce", "glossy_bounce", "transmission_bounce", "transparent_bounce"))
 
 # Random-number groups (rng.Sampler): 0 the pixel filter, then per bounce _GROUPS groups:
 # light (lanes 0-1 the point on the light, 2 its choice) and BSDF (0-1 the direction, 2 the
@@ -88,11 +85,11 @@ class PathTracer:
         self.light_paths = LightPaths.of(scene, lights, self.visibility)
         self.closure_options = ClosureOptions.of(st)
         # What node programs read of the path: its flags, its counts by kind, its differentials.
-        reads = self.programs.reads
+        reads = self.programs.reads | lights.world_reads
         self.track_flag = "path_flag" in reads
         self.track_dP = "dP" in reads
-        self.track = self.track_flag or self.track_dP or bool(reads & _COUNTS)
-        if reads & _COUNTS - {"bounce"} and not self.light_paths.counts:
+        self.track = self.track_flag or self.track_dP or bool(reads & COUNT_FIELDS)
+        if reads & COUNT_FIELDS - {"bounce"} and not self.light_paths.counts:
             self.light_paths = dataclasses.replace(self.light_paths, counts=True)
 
     def render(self, sampler, px: np.ndarray, py: np.ndarray, stop=None, tally=None) -> np.ndarray:
@@ -218,7 +215,7 @@ class PathTracer:
             r = np.flatnonzero(missed if lit is None else missed & lit)
             c = take(paths.beta, r) * lights.escaped(take(paths.d, r), paths.pdf_prev[r], use_mis[r], camera_ray[r],
                                                      None if kind is None else kind[r],
-                                                     b.take(r) if lights.world_reads_bounces else None)
+                                                     b.record(r) if lights.world_reads else None)
             self._add(L, idx[r], self._clamp(c, direct, r), tally, depth, escaped=True)
         emits = self.emissive_prim[hit.prim]
         if lit is not None:
@@ -228,9 +225,10 @@ class PathTracer:
             prim, pdf_prev = hit.prim[r], paths.pdf_prev[r]
             Le = take(self.materials.emission, self.mesh.material[prim])
             ray = b.record(r, hit.t[r]) if self.track else None
-            Le = emitted(self.scene, self.programs, self.flat_normal, Le, hit.take(r), take(paths.d, r), ray)
-            cos_l = np.abs(dot(take(paths.d, r), hit.take(r).ng))
-            pdf_light = lights.pdf_triangle_hit(prim, take(paths.o64, r), hit.t[r], cos_l)
+            at = hit.take(r)
+            Le = emitted(self.scene, self.programs, self.flat_normal, Le, at, take(paths.d, r), ray)
+            cos_l = np.abs(dot(take(paths.d, r), at.ng))
+            pdf_light = lights.pdf_triangle_hit(prim, take(paths.o64, r), hit.t[r], cos_l, at.b)
             w = np.where(paths.no_mis[r], 1.0, pdf_prev / np.maximum(pdf_prev + pdf_light, 1e-300))
             self._add(L, idx[r], self._clamp(take(paths.beta, r) * scale(Le, w), b.total <= 1, r), tally, depth)
 
@@ -298,7 +296,7 @@ class PathTracer:
         at = gatherer(active, m)
         u = sampler.get(1 + _GROUPS * rows_of(paths.depth, active) + _LIGHT, at(paths.idx), 3)
         ls = self.lights.sample(at(paths.p), u[:, 2], u[:, :2], in_unit=True,
-                                bounces=b.take(active) if self.lights.world_reads_bounces else None)
+                                ray=b.record(active) if self.lights.world_reads else None)
         f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility)
         cos_i = np.abs(dot(ls.wi, at(bsdf.ns)))  # ns: may be perturbed (normal maps)
         pdf_b_mis = at(q) * pdf_b if self.strategy.mis else 0.0

@@ -87,9 +87,9 @@ class LightPaths:
         any_transparent = bool(transparent.any())
         return cls(st.max_depth, st.rr_depth, per_label, transparent, any_transparent,
                    counts=bool(np.any(per_label[[LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT]] < st.max_depth)
-                               or any_transparent or lights.world_reads_bounces),
+                               or any_transparent),
                    ray=bool(lights.partial_visibility or not visibility.trivial or any_transparent
-                            or not (st.caustics_reflective and st.caustics_refractive) or lights.world_reads_path),
+                            or not (st.caustics_reflective and st.caustics_refractive)),
                    min_pdf=st.filter_glossy > 0)
 
     def start(self, n: int, max_depth: int, per_path: bool) -> Bounces:

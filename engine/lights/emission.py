@@ -345,6 +345,10 @@ class PhotonEmitter:
         if code == TRIANGLE:
             t = i - ls.n_analytic
             b = sampling.sample_uniform_triangle(u_pos)
+            density = np.ones(n)  # relative to uniform over the triangle
+            r = np.flatnonzero(ls.tri_varying[t]) if ls.tri_varying is not None else ()
+            if len(r):  # textured emitters: photons leave where they shine
+                b[r], density[r] = ls.maps.sample(ls.map_row[t[r]], u_pos[r])
             o = _affine(take(ls.tri_v0, t), (b[:, 1], take(ls.tri_e1, t)), (b[:, 2], take(ls.tri_e2, t)))
             nrm = _colour(take(ls.tri_ng, t), np.where(u_side < 0.5, 1.0, -1.0))  # two-sided: either face
             local = sampling.sample_cosine_hemisphere(u_dir)
@@ -352,10 +356,9 @@ class PhotonEmitter:
             d = sampling.to_world(local, tb[0], tb[1], nrm)
             a = ls.tri_area[t]
             Le = take(ls.tri_Le, t)
-            if ls.tri_varying is not None and ls.tri_varying[t].any():  # textured emitters: Le at the point
-                r = np.flatnonzero(ls.tri_varying[t])
+            if len(r):
                 Le[r] = ls.triangle_emission(t[r], b[r], o[r], d[r])
-            flux = _colour(Le, np.where(local[:, 2] > 0, 2.0 * np.pi * a, 0.0))
+            flux = _colour(Le, np.where(local[:, 2] > 0, 2.0 * np.pi * a / density, 0.0))
             return PhotonRays(o, d, flux, np.broadcast_to(ls.tri_prim[t], (n,)).copy())
         if code in (LIGHT_POINT, LIGHT_SPOT):
             c = take(an.position, i)
@@ -441,6 +444,10 @@ class PhotonEmitter:
             elif code == TRIANGLE:
                 t = i - ls.n_analytic
                 pdf_pos[rows] = 1.0 / ls.tri_area[t]
+                v = np.flatnonzero(ls.tri_varying[t]) if ls.tri_varying is not None else ()
+                if len(v):
+                    b = ls.barycentrics(t[v], o[rows[v]])
+                    pdf_pos[rows[v]] *= ls.maps.pdf_in_triangle(ls.map_row[t[v]], b)
                 pdf_dir[rows] = np.abs(dot(dr, take(ls.tri_ng, t))) / (2.0 * np.pi)
             elif code in (LIGHT_POINT, LIGHT_SPOT):
                 pdf_dir[rows] = np.full(len(rows), 0.25 / np.pi) if code == LIGHT_POINT else self._pdf_spot(i, dr)

@@ -33,8 +33,11 @@ import numpy as np
 
 from .. import sampling
 from ..scene import LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, RAY_ALL, RAY_CAMERA, Lights, Materials, Mesh, World
+from ..nodes import light_path as lp
+from ..nodes.hits import EMISSION_RAY, RayState
 from ..vec import dot, max3, scale, take
 from . import light_shader, light_tree, shapes, world as world_light
+from .emission_maps import EmissionMaps
 
 # From this many finite lights on, a light tree chooses them (below: power alone, as the seed
 # says): below it the tree's cost per shading point is not reliably repaid at equal time
@@ -86,10 +89,10 @@ class LightSet:
         surface_emission: for materials whose emission varies over the surface (textured
         emitters), an object with `varying` (M,) bool per material and a call (prim, bary, p,
         n, wo) -> (K,3) radiance at points of triangles (engine/nodes/material.py
-        SurfaceEmission), or None. Such triangles are chosen by their mean radiance over a few
-        points and sampled uniformly, and a sample's radiance is the material's at its point. camera: the
-        scene's Camera, for a world program's Camera and Window coordinates (None: at the
-        origin, looking down -z)."""
+        SurfaceEmission), or None. Such triangles are chosen by their mean radiance and sampled
+        by their emission maps (emission_maps.py); a sample's radiance is the material's at its
+        point. camera: the scene's Camera, for a world program's Camera and Window coordinates
+        (None: at the origin, looking down -z)."""
         self.lights = lights
         self.n_analytic = len(lights)
         self.scene_radius = scene_radius
@@ -100,12 +103,15 @@ class LightSet:
         emissive = np.any(tri_Le != 0, axis=-1) & (accel.area > 0) if mesh.n_triangles else np.zeros(0, bool)
         self.tri_prim = np.flatnonzero(emissive)
         self.tri_Le = tri_Le[self.tri_prim]
-        self.surface_emission, self.tri_varying = surface_emission, None
+        self.surface_emission, self.tri_varying, self.maps = surface_emission, None, None
         if surface_emission is not None and len(self.tri_prim):
             varying = surface_emission.varying[mesh.material[self.tri_prim]]
             if varying.any():
                 self.tri_varying = varying
-                self.tri_Le[varying] = self._mean_emission(accel, self.tri_prim[varying])
+                self.map_row = np.cumsum(varying) - 1  # a varying triangle's row in the maps
+                self.maps = EmissionMaps(int(varying.sum()),
+                                         lambda i, b: self._emission_at(accel, self.tri_prim[varying][i], b))
+                self.tri_Le[varying] = self.maps.mean
         self.tri_area = accel.area[self.tri_prim]
         self.tri_v0 = accel.v0[self.tri_prim]
         self.tri_e1 = accel.e1[self.tri_prim]
@@ -121,8 +127,8 @@ class LightSet:
         # table (sampled, last index); `background` the program escaped rays evaluate.
         self.world, self.background, self.env = world_light.world_emitters(world, strategy == "mis", camera)
         bg = self.background
-        self.world_reads_path = bg is not None and bg.reads_path  # escaped rays need their kinds
-        self.world_reads_bounces = bg is not None and bg.reads_bounces  # ... and bounce counts
+        # What the world's Light Path reads of the paths: integrators give their RayStates then.
+        self.world_reads = bg.reads_path if bg is not None else frozenset()
         self.world_reads_camera = bg is not None and bg.reads_camera  # the table follows the camera
         self.world_visible = bool(world.visible)
         # Environment power as pbrt-v4's infinite lights: pi R^2 x integral of L over the sphere.
@@ -255,10 +261,10 @@ class LightSet:
         return index, pmf
 
     # ---- next-event estimation ------------------------------------------------------------
-    def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray, in_unit=False, bounces=None) -> LightSample:
+    def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray, in_unit=False, ray=None) -> LightSample:
         """One light sample per shading point p (N,3) float64; u_select (N,), u (N,2) (in_unit:
-        known to lie in [0, 1), a Sampler's numbers: not clamped again); bounces: a Bounces of
-        the N paths, for a world program reading their counts (world_reads_bounces), or None."""
+        known to lie in [0, 1), a Sampler's numbers: not clamped again); ray: the N paths'
+        RayState, for a world program reading them (world_reads), or None."""
         n = len(p)
         if self.tree is None and self.n_analytic == 0 and self.env is None:
             return self._sample_triangles(p, u_select, u, in_unit)
@@ -286,7 +292,7 @@ class LightSet:
         is_env = np.False_ if only_triangles else index == self.env_index
         if is_env.any():
             rows, r = rows_of(is_env)
-            e = self.env.sample(u[r]) if bounces is None else self.env.sample(u[r], bounces=bounces.take(rows))
+            e = self.env.sample(u[r]) if ray is None else self.env.sample(u[r], ray.take(rows).for_emission())
             put(rows, shapes.ShapeSample(e.wi, e.Le, e.pdf, p[r] + e.wi * 1e30, np.zeros(len(rows), bool)))
         target_prim = np.full(n, -1, np.int64)
         if is_tri.any():
@@ -328,14 +334,16 @@ class LightSet:
         """A uniform point on each of the emissive triangles t (N,) seen from p (N,3) (one gather
         of each triangle's row); in_unit as `sample`."""
         b = sampling.sample_uniform_triangle(u, in_unit)
+        r = np.flatnonzero(self.tri_varying[t]) if self.tri_varying is not None else ()
+        if len(r):  # textured emitters: points where they shine
+            b[r], density = self.maps.sample(self.map_row[t[r]], u[r])
         row = take(self.tri_rows, t)
         y = row[:, 0:3] + scale(row[:, 3:6], b[:, 1]) + scale(row[:, 6:9], b[:, 2])
         wi, pdf = shapes.area_to_solid_angle(p, y, row[:, 9:12], row[:, 12], two_sided=True)
         Le = take(self.tri_Le, t)
-        if self.tri_varying is not None:
-            r = np.flatnonzero(self.tri_varying[t])
-            if len(r):
-                Le[r] = self.triangle_emission(t[r], b[r], y[r], -wi[r])
+        if len(r):
+            pdf[r] *= density
+            Le[r] = self.triangle_emission(t[r], b[r], y[r], -wi[r])
         return shapes.ShapeSample(wi, Le, pdf, y, np.ones(len(t), bool))
 
     def triangle_emission(self, t: np.ndarray, b: np.ndarray, y: np.ndarray, wo: np.ndarray) -> np.ndarray:
@@ -345,23 +353,35 @@ class LightSet:
         n = ng * np.where(dot(ng, wo) < 0, -1.0, 1.0)[:, None]  # two-sided: the side wo leaves
         return self.surface_emission(self.tri_prim[t], b, y, n, wo)
 
-    def _mean_emission(self, accel, prim: np.ndarray) -> np.ndarray:
-        """(K,3) mean radiance of triangles prim (K,) over four stratified points each."""
-        u = (np.array([[0.25, 0.25], [0.75, 0.25], [0.25, 0.75], [0.75, 0.75]]))
-        b = np.tile(sampling.sample_uniform_triangle(u), (len(prim), 1))
-        tri = np.repeat(prim, len(u))
-        y = accel.v0[tri] + scale(accel.e1[tri], b[:, 1]) + scale(accel.e2[tri], b[:, 2])
-        ng = accel.ng[tri]
-        Le = self.surface_emission(tri, b, y, ng, ng)
-        return Le.reshape(len(prim), len(u), 3).mean(axis=1)
+    def barycentrics(self, t: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """(K,3) barycentrics of points y (K,3) in the planes of emissive triangles t (K,)."""
+        e1, e2, d = take(self.tri_e1, t), take(self.tri_e2, t), y - take(self.tri_v0, t)
+        g11, g12, g22 = dot(e1, e1), dot(e1, e2), dot(e2, e2)
+        r1, r2 = dot(d, e1), dot(d, e2)
+        det = g11 * g22 - g12 * g12
+        b1 = np.divide(g22 * r1 - g12 * r2, det, out=np.zeros_like(det), where=det > 0)
+        b2 = np.divide(g11 * r2 - g12 * r1, det, out=np.zeros_like(det), where=det > 0)
+        return np.column_stack([1.0 - b1 - b2, b1, b2])
+
+    def _emission_at(self, accel, prim: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """(K,3) radiance of triangles prim (K,) at barycentrics b (K,3), along their normal."""
+        y = accel.v0[prim] + scale(accel.e1[prim], b[:, 1]) + scale(accel.e2[prim], b[:, 2])
+        ng = accel.ng[prim]
+        return self.surface_emission(prim, b, y, ng, ng)
 
     # ---- emission found by rays (BSDF sampling or camera rays) -----------------------------
-    def pdf_triangle_hit(self, prim: np.ndarray, p_prev: np.ndarray, t: np.ndarray, cos_light: np.ndarray):
+    def pdf_triangle_hit(self, prim: np.ndarray, p_prev: np.ndarray, t: np.ndarray, cos_light: np.ndarray,
+                         b: np.ndarray):
         """Selection pmf x solid-angle pdf with which NEE at p_prev would have sampled the hit
-        point on emissive triangle `prim` at distance t with |cos| at the light."""
+        point (barycentrics b (N,3)) on emissive triangle `prim` at distance t with |cos| at
+        the light."""
         index = self.light_of_prim[prim]
-        area = self.tri_area[index - self.n_analytic]
+        tri = index - self.n_analytic
+        area = self.tri_area[tri]
         pdf = self.pmf(index, p_prev) * np.divide(t * t, area * cos_light, out=np.zeros_like(t), where=(area * cos_light) > 0)
+        if self.maps is not None:
+            r = np.flatnonzero(self.tri_varying[tri])
+            pdf[r] *= self.maps.pdf_in_triangle(self.map_row[tri[r]], b[r])
         return np.where(np.isfinite(pdf), pdf, 0.0)
 
     def emission_along(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, pdf_bsdf: np.ndarray,
@@ -379,13 +399,13 @@ class LightSet:
         return total
 
     def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray,
-                kind: np.ndarray = None, bounces=None) -> np.ndarray:
+                kind: np.ndarray = None, ray=None) -> np.ndarray:
         """Radiance (N,3) for rays leaving the scene along d: suns and the world's light
         (MIS-weighted like `emission_along`; a world program without a table and the constant
         world weigh 1: they are never light-sampled). Camera rays see the world only if it is
         visible; with kind (N,), rays see only what is visible to their kind. A world program
-        reads the rays' kinds (kind, else camera) and bounces (a Bounces of the N rays, or None:
-        none counted) where Light Path asks (world_reads_path, world_reads_bounces)."""
+        whose Light Path reads the paths (world_reads) reads ray, the N rays' RayState; without
+        one, a camera ray's first hit where camera, else a ray leaving a diffuse bounce."""
         total = np.zeros((len(d), 3))
         for i in self.suns.tolist():
             self._add_weighted(total, i, shapes.sun_hit(self.lights, i, d), pdf_bsdf, use_mis, camera, kind, None, d)
@@ -396,10 +416,12 @@ class LightSet:
             rows = np.flatnonzero(seen)
             Le = np.zeros((len(d), 3))
             if len(rows):
-                flags = world_light.path_flags(None if kind is None else kind[rows], camera[rows], len(rows)) \
-                    if self.world_reads_path else world_light.PATH_EMISSION
-                b = bounces.take(rows) if bounces is not None and self.world_reads_bounces else None
-                Le[rows] = self.background.radiance(take(d, rows), flags, b)
+                state = EMISSION_RAY
+                if self.world_reads:
+                    state = ray.take(rows) if ray is not None else \
+                        RayState(np.where(camera[rows], lp.CAMERA, lp.REFLECT | lp.DIFFUSE).astype(np.uint32), 0)
+                    state = state.escaped()
+                Le[rows] = self.background.radiance(take(d, rows), state)
         elif self.env is not None:
             Le = self.env.eval(d)
         if self.env is not None or self.background is not None:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..nodes import light_path as lp
 from ..nodes.closures import closures
 from ..nodes.program import compile
 from ..nodes.state import ShadingState
@@ -31,7 +32,6 @@ from ..vec import normalize
 from .world import ZeroFields
 
 _FLT_MAX = float(np.finfo(np.float32).max)
-PATH_EMISSION = 1 << 20
 
 
 class _LightPoints(ZeroFields):
@@ -86,7 +86,7 @@ class _LightPoints(ZeroFields):
     generated = object
 
     def path_flag(self):
-        return np.full(len(self._P), PATH_EMISSION, np.uint32)
+        return np.full(len(self._P), lp.EMISSION, np.uint32)
 
     def bounce(self):
         return np.zeros(len(self._P))

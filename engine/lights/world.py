@@ -6,15 +6,10 @@ shading state Cycles' shader_setup_from_background gives a background (geom/shad
   P = Generated = Object = d, N = Ng = I = -d (Texture Coordinate's Normal and Reflection read
   -d), UV zero, no object (identity transforms), ray_length FLT_MAX; Camera and Window as
   svm/tex_coord.h computes them for OBJECT_NONE: the point camera position + d (perspective).
-The path state (what Light Path reads) per ray: Cycles' PATH_RAY_* flags of the ray that
-escaped, with PATH_RAY_EMISSION added (integrator/shade_background.h
-integrator_eval_background_shader), and its bounce counts; a light sample of the world is
-PATH_RAY_EMISSION alone (light/sample.h light_sample_shader_eval). Ember's ray kinds map to
-the flags of the bounce that made the ray (integrator/path_state.h path_state_next):
-  camera -> CAMERA; diffuse -> REFLECT | DIFFUSE; glossy -> REFLECT | GLOSSY;
-  transmission -> TRANSMIT | GLOSSY
-(Ember does not keep whether a bounce was singular: SINGULAR is never set). A ray whose kind
-the integrator does not track is a camera ray at depth 0 and a diffuse reflection after.
+The path state (what Light Path reads) per ray: a RayState (engine/nodes/hits.py), the flags
+of the ray that escaped with PATH_RAY_EMISSION added and its bounce counts (integrator/
+shade_background.h integrator_eval_background_shader); a light sample of the world reads
+PATH_RAY_EMISSION and the path's counts (light/sample.h light_sample_shader_eval).
 
 WorldMap: the importance table (Cycles' scene/light.cpp device_update_background). The
 program is evaluated at the centres of an equirectangular grid of W x H pixels (the state of a
@@ -57,26 +52,13 @@ from .. import sampling
 from ..nodes import atmosphere
 from ..nodes.closures import closures
 from ..nodes.graph import Graph
+from ..nodes.hits import EMISSION_RAY, PATH_FIELDS, RayState
 from ..nodes.program import compile
 from ..nodes.sky import _DEFAULTS as SKY_DEFAULTS, scattering_sun_direction
 from ..nodes.state import ShadingState
-from ..scene import RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT
 from ..textures import LUMINANCE
 from .environment import EnvironmentMap, EnvironmentSample
 
-# Cycles' PathRayFlag bits (kernel/types.h) that Light Path reads, and EMISSION.
-PATH_CAMERA, PATH_REFLECT, PATH_TRANSMIT, PATH_DIFFUSE, PATH_GLOSSY = 1 << 0, 1 << 1, 1 << 2, 1 << 3, 1 << 4
-PATH_EMISSION = 1 << 20
-_FLAGS_OF_RAY = np.zeros(32, np.uint32)
-_FLAGS_OF_RAY[RAY_CAMERA] = PATH_CAMERA
-_FLAGS_OF_RAY[RAY_DIFFUSE] = PATH_REFLECT | PATH_DIFFUSE
-_FLAGS_OF_RAY[RAY_GLOSSY] = PATH_REFLECT | PATH_GLOSSY
-_FLAGS_OF_RAY[RAY_TRANSMIT] = PATH_TRANSMIT | PATH_GLOSSY
-# The state fields a path gives (Light Path's): a program reading any needs the rays' kinds.
-PATH_FIELDS = frozenset({"path_flag", "bounce", "diffuse_bounce", "glossy_bounce", "transmission_bounce",
-                         "transparent_bounce", "portal_bounce"})
-BOUNCE_FIELDS = PATH_FIELDS - {"path_flag"}
-_COUNTS = {"diffuse_bounce": 0, "glossy_bounce": 1, "transmission_bounce": 2, "transparent_bounce": 3}  # LABEL_*
 _FLT_MAX = float(np.finfo(np.float32).max)
 
 MAX_WIDTH = 2048  # 2 M evaluations, ~60 MB per process (Cycles goes to 4096 for several suns)
@@ -87,18 +69,6 @@ SUN_SHARE_MAX = 0.8  # Cycles' sun_weight / (sun_weight + map_weight)
 SUN_SHARE_MIN = 0.05  # a guided sun is never left with fewer light samples than this
 _CHUNK = 1 << 16  # directions per program run while building the table
 _SUN_PROBES = 1024  # directions in a sun's cone measuring its power
-
-
-def path_flags(kind=None, camera=None, n: int = 0) -> np.ndarray:
-    """Cycles' path flags (N,) uint32 of N escaped rays from Ember's ray kinds `kind` (N,)
-    RAY_* or, where the integrator does not track them, `camera` (N,) bool; PATH_RAY_EMISSION
-    added (a background seen by the ray)."""
-    if kind is not None:
-        return _FLAGS_OF_RAY[np.asarray(kind, np.intp)] | np.uint32(PATH_EMISSION)
-    if camera is None:
-        return np.full(n, PATH_EMISSION, np.uint32)
-    camera = np.asarray(camera, bool)
-    return np.where(camera, PATH_CAMERA, PATH_REFLECT | PATH_DIFFUSE).astype(np.uint32) | np.uint32(PATH_EMISSION)
 
 
 # Fields a point off any mesh and object has as zeros (Cycles' OBJECT_NONE and PRIM_NONE:
@@ -120,11 +90,10 @@ class ZeroFields:
 
 class _Directions(ZeroFields):
     """The shading state source of N background points (see the module docstring): d (N,3)
-    unit directions, flags (N,) path flags, bounces a Bounces of the rays (its total and
-    per-label counts) or None (no bounce yet), camera a scene Camera or None."""
+    unit directions, ray a RayState of the rays, camera a scene Camera or None."""
 
-    def __init__(self, d, flags, bounces=None, camera=None):
-        self._d, self._flags, self._bounces, self._camera = d, flags, bounces, camera
+    def __init__(self, d, ray: RayState, camera=None):
+        self._d, self._ray, self._camera = d, ray, camera
 
     def __len__(self):
         return len(self._d)
@@ -190,29 +159,25 @@ class _Directions(ZeroFields):
         return np.stack([x, y, np.zeros(len(c))], axis=1)
 
     def path_flag(self):
-        return np.broadcast_to(np.asarray(self._flags, np.uint32), (len(self._d),))
+        return np.broadcast_to(np.asarray(self._ray.flag, np.uint32), (len(self._d),))
+
+    def _count(self, name):
+        return np.broadcast_to(np.asarray(getattr(self._ray, name), np.float64), (len(self._d),))
 
     def bounce(self):
-        b = self._bounces
-        return np.broadcast_to(np.asarray(0 if b is None else b.total, np.float64), (len(self._d),))
-
-    def _count(self, label):
-        b = self._bounces
-        if b is None or b.counts is None:
-            return np.zeros(len(self._d))
-        return b.counts[:, label].astype(np.float64)
+        return self._count("bounce")
 
     def diffuse_bounce(self):
-        return self._count(_COUNTS["diffuse_bounce"])
+        return self._count("diffuse_bounce")
 
     def glossy_bounce(self):
-        return self._count(_COUNTS["glossy_bounce"])
+        return self._count("glossy_bounce")
 
     def transmission_bounce(self):
-        return self._count(_COUNTS["transmission_bounce"])
+        return self._count("transmission_bounce")
 
     def transparent_bounce(self):
-        return self._count(_COUNTS["transparent_bounce"])
+        return self._count("transparent_bounce")
 
     def portal_bounce(self):
         return np.zeros(len(self._d))
@@ -239,23 +204,22 @@ class Background:
         self.scale = np.asarray(scale, np.float64).reshape(3)
         self.camera = camera
         reads = self.program.reads
-        self.reads_path = bool(reads & PATH_FIELDS)  # Light Path: the rays' kinds matter
-        self.reads_bounces = bool(reads & BOUNCE_FIELDS)  # ... and their bounce counts
+        self.reads_path = reads & PATH_FIELDS  # what Light Path reads of the rays' paths
         self.reads_camera = bool(reads & {"camera", "window", "world_from_camera", "camera_from_world"})
 
     @property
     def warnings(self) -> tuple:
         return self.program.warnings
 
-    def radiance(self, d: np.ndarray, flags=PATH_EMISSION, bounces=None) -> np.ndarray:
+    def radiance(self, d: np.ndarray, ray: RayState = EMISSION_RAY) -> np.ndarray:
         """Radiance (N,3) W/(m^2 sr) arriving along -d from unit world directions d (N,3):
         the background and emission closures of the program (Cycles' surface_shader_background
-        sums both), for rays of path flags `flags` ((N,) or one for all) and bounce counts
-        `bounces` (a Bounces of the N rays, or None: no bounce yet). Non-finite values are 0."""
+        sums both), for rays of the paths `ray` (default: a light sample before any bounce).
+        Non-finite values are 0."""
         n = len(d)
         if n == 0:
             return np.zeros((0, 3))
-        state = ShadingState(n, source=_Directions(d, flags, bounces, self.camera))
+        state = ShadingState(n, source=_Directions(d, ray, self.camera))
         total = np.zeros((n, 3))
         for c in closures(self.program.run(state)["surface"]):
             if c.kind in ("background", "emission"):
@@ -434,9 +398,9 @@ class WorldMap:
             return self
         return WorldMap(self.background, (self.shape[1], self.shape[0]), False, self.values, self.suns)
 
-    def eval(self, d, flags=PATH_EMISSION, bounces=None) -> np.ndarray:
+    def eval(self, d, ray: RayState = EMISSION_RAY) -> np.ndarray:
         """The program's radiance (N,3) at unit world directions d (N,3), a light sample's."""
-        return self.background.radiance(d, flags, bounces)
+        return self.background.radiance(d, ray)
 
     def pdf(self, d) -> np.ndarray:
         """Solid-angle pdf (N,) with which sample() draws the unit directions d (N,3)."""
@@ -446,10 +410,10 @@ class WorldMap:
             pdf = pdf + s.share * s.pdf(d)
         return pdf
 
-    def sample(self, u, flags=PATH_EMISSION, bounces=None) -> EnvironmentSample:
+    def sample(self, u, ray: RayState = EMISSION_RAY) -> EnvironmentSample:
         """Directions from u (N,2) in [0, 1)^2: a component chosen by u[:, 0] (rescaled), the
-        table's direction or a sun's cone; the program's radiance there (a light sample's
-        path flags, or `flags`) and the mixture's pdf."""
+        table's direction or a sun's cone; the program's radiance there (for a light sample of
+        the paths `ray`) and the mixture's pdf."""
         u = np.asarray(u, np.float64)
         n = len(u)
         if not self.suns:
@@ -468,7 +432,7 @@ class WorldMap:
                     wi[rows] = self.map.sample(v[rows]).wi if k == 0 else self.suns[k - 1].sample(v[rows])
         pdf = self.pdf(wi)
         valid = (pdf > 0) & np.isfinite(pdf)
-        Le = self.background.radiance(wi, flags, bounces)
+        Le = self.background.radiance(wi, ray)
         return EnvironmentSample(wi, np.where(valid[:, None], Le, 0.0), np.where(valid, pdf, 0.0), valid)
 
     @property

@@ -69,12 +69,21 @@ class RayState:
         pick = lambda v: v if v is None or np.ndim(v) == 0 else v[rows]  # noqa: E731
         return RayState(*(pick(getattr(self, name)) for name in self.__slots__))
 
+    def escaped(self) -> "RayState":
+        """What the world's shader sees of these paths' rays leaving the scene: their flags with
+        Cycles' emission flag added (integrator_eval_background_shader)."""
+        return RayState(np.asarray(self.flag, np.uint32) | np.uint32(light_path.EMISSION),
+                        *(getattr(self, name) for name in _COUNTS), dP=self.dP)
+
     def for_emission(self) -> "RayState":
         """What a light's shader sees for a light sample of these paths: Cycles' emission flag,
         the paths' bounce counts, no ray differential (shader_setup_from_sample)."""
         return RayState(light_path.EMISSION, *(getattr(self, name) for name in _COUNTS), dP=0.0)
 
 
+# The state fields that come from the path (a RayState); portal_bounce is always 0.
+PATH_FIELDS = frozenset(("path_flag",) + _COUNTS + ("portal_bounce",))
+COUNT_FIELDS = frozenset(_COUNTS)
 CAMERA_RAY = RayState(light_path.CAMERA)  # a camera ray's first hit, nothing tracked
 EMISSION_RAY = RayState(light_path.EMISSION, dP=0.0)  # a light sample's evaluation, bounce 0
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..scene import (FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET,
                      LOBE_PHONG, LOBE_TRANSPARENT, part_digest)
+from . import light_path
 from .closures import closures
 from .graph import Graph
 from .hits import EMISSION_RAY, SurfaceHits
@@ -52,26 +53,30 @@ _PROBE = dict(P=np.zeros((1, 3)), N=np.array([[0.0, 0.0, 1.0]]), Ng=np.array([[0
               generated_du=np.array([[1.0, 0.0, 0.0]]), generated_dv=np.array([[0.0, 1.0, 0.0]]),
               dP=np.full(1, 1e-3), ndc_from_world=np.eye(4), object_color=np.ones((1, 3)), object_alpha=np.ones(1),
               object_index=np.zeros(1), object_random=np.full(1, 0.5), material_index=np.zeros(1),
-              path_flag=np.ones(1, np.uint32), bounce=np.zeros(1, np.int64), diffuse_bounce=np.zeros(1, np.int64),
+              bounce=np.zeros(1, np.int64), diffuse_bounce=np.zeros(1, np.int64),
               glossy_bounce=np.zeros(1, np.int64), transmission_bounce=np.zeros(1, np.int64),
               transparent_bounce=np.zeros(1, np.int64), portal_bounce=np.zeros(1, np.int64))
 
 
 PROBES = 16  # points a varying emission's mean is estimated from
+# The rays a varying emission is probed for (Light Path): camera, a light sample's, reflected
+# diffuse and glossy, transmitted.
+_PROBE_FLAGS = (light_path.CAMERA, light_path.EMISSION, light_path.REFLECT | light_path.DIFFUSE,
+                light_path.REFLECT | light_path.GLOSSY, light_path.TRANSMIT | light_path.GLOSSY)
 
 
-def probe_state(n: int = 1) -> ShadingState:
+def probe_state(n: int = 1, path_flag: int = light_path.CAMERA) -> ShadingState:
     """n probe points: the first the plausible point above, the others spread over the unit
     square of UV and Generated coordinates (and positions) by a 2D Halton sequence, so that a
-    texture's mean over them stands for its mean over the surface."""
-    if n == 1:
-        return ShadingState(1, **_PROBE)
-    k = np.arange(n)
-    u, v = _radical_inverse(k, 2), _radical_inverse(k, 3)
-    square = np.stack([u, v, np.full(n, 0.5)], axis=1)
+    texture's mean over them stands for its mean over the surface; path_flag: the rays' Light
+    Path flags (default a camera ray's)."""
     fields = {name: np.repeat(value, n, axis=0) if np.ndim(value) and value.shape[0] == 1 else value
               for name, value in _PROBE.items()}
-    fields.update(uv=square, generated=square, P=2.0 * square - 1.0, object=2.0 * square - 1.0)
+    fields["path_flag"] = np.full(n, path_flag, np.uint32)
+    if n > 1:
+        k = np.arange(n)
+        square = np.stack([_radical_inverse(k, 2), _radical_inverse(k, 3), np.full(n, 0.5)], axis=1)
+        fields.update(uv=square, generated=square, P=2.0 * square - 1.0, object=2.0 * square - 1.0)
     return ShadingState(n, **fields)
 
 
@@ -194,8 +199,10 @@ def compile_material(graph: Graph) -> MaterialProgram:
                          displacement=displacement)
     if emission is not None:
         mp.emission_mean = emission
-    else:
-        mp.emission_mean = mp.evaluate(probe_state(PROBES))[1].mean(axis=0)
+    else:  # the largest mean any kind of ray sees: a surface black to camera rays still lights
+        flags = _PROBE_FLAGS if "path_flag" in program.reads else _PROBE_FLAGS[:1]
+        means = [mp.evaluate(probe_state(PROBES, flag))[1].mean(axis=0) for flag in flags]
+        mp.emission_mean = max(means, key=lambda m: float(np.abs(m).sum()))
     return mp
 
 

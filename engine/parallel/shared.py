@@ -5,7 +5,8 @@ aligned offset; a worker maps it and sees read-only views (a 10-million-photon m
 shared, not pickled to every worker). Arrays are named: a later version of a name replaces
 the earlier one, other names stay current (photon maps, then radiance photons beside them).
 The render process owns the segments and unlinks them on every exit path
-(`Publisher.release`, also run by the session's `finally`); workers only attach and close.
+(`Publisher.release`, also run by the session's `finally`; `unlink_all` where a signal ends
+the process at once); workers only attach and close.
 
 Python 3.11's resource tracker registers every SharedMemory it sees, also in processes that
 merely attach, and would unlink the segment when such a process exits (cpython issue 82300):
@@ -18,6 +19,38 @@ from multiprocessing import resource_tracker, shared_memory
 import numpy as np
 
 _ALIGN = 64
+_OWNED: dict = {}  # name -> SharedMemory this process created and has not unlinked yet
+
+
+def create(size: int) -> shared_memory.SharedMemory:
+    """A new segment this process owns: unlink() it, or unlink_all() on an abrupt exit."""
+    shm = shared_memory.SharedMemory(create=True, size=size)
+    _OWNED[shm.name] = shm
+    return shm
+
+
+def unlink(shm) -> None:
+    """Unlink first (the name goes; mappings stay valid), then unmap: a view still alive in
+    this process makes close() fail, which must not keep the segment from being unlinked."""
+    _OWNED.pop(shm.name, None)
+    try:
+        shm.unlink()
+    except FileNotFoundError:  # pragma: no cover - already gone
+        pass
+    try:
+        shm.close()
+    except BufferError:  # pragma: no cover - a view is alive: unmapped at exit
+        pass
+
+
+def unlink_all() -> None:
+    """Unlink every segment this process still owns: for an exit that skips the owners'
+    cleanup (os._exit after a signal), so that none outlives the process."""
+    for shm in list(_OWNED.values()):
+        try:
+            unlink(shm)
+        except Exception:  # pragma: no cover - best effort on the way out
+            pass
 
 
 def _layout(arrays: dict[str, np.ndarray]):
@@ -52,14 +85,14 @@ class Publisher:
         is unlinked once every array in it has a newer version: workers that still map it
         keep their mapping until they move on (POSIX), new ones never see it."""
         spec, size = _layout(arrays)
-        shm = shared_memory.SharedMemory(create=True, size=size)
+        shm = create(size)
+        self.segments.append(shm)  # at once: release() unlinks it whatever interrupts below
         replaced = {self.names[name].name for name in arrays if name in self.names}
         self.names.update(dict.fromkeys(arrays, shm))
         live = {seg.name for seg in self.names.values()}
         for seg in [seg for seg in self.segments if seg.name in replaced and seg.name not in live]:
             self.segments.remove(seg)
-            _unlink(seg)
-        self.segments.append(shm)
+            unlink(seg)
         for name, a in arrays.items():
             offset, shape, dtype = spec[name]
             np.ndarray(shape, np.dtype(dtype), buffer=shm.buf, offset=offset)[...] = a
@@ -68,20 +101,7 @@ class Publisher:
     def release(self) -> None:
         self.names.clear()
         while self.segments:
-            _unlink(self.segments.pop())
-
-
-def _unlink(shm) -> None:
-    """Unlink first (the name goes; mappings stay valid), then unmap: a view still alive in
-    this process makes close() fail, which must not keep the segment from being unlinked."""
-    try:
-        shm.unlink()
-    except FileNotFoundError:  # pragma: no cover - already gone
-        pass
-    try:
-        shm.close()
-    except BufferError:  # pragma: no cover - a view is alive: unmapped at exit
-        pass
+            unlink(self.segments.pop())
 
 
 class Attachment:

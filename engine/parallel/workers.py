@@ -47,7 +47,6 @@ import subprocess
 import sys
 import threading
 from concurrent.futures import Future, wait
-from multiprocessing import shared_memory
 
 import numpy as np
 
@@ -55,7 +54,7 @@ from ..errors import Cancelled, EmberError
 from ..integrators.base import Stage
 from ..scene import part_digests, scene_from_plain, to_plain
 from ..tracer import BUILDS, Tracer
-from .shared import Attachment, Publisher
+from .shared import Attachment, Publisher, create as create_segment, unlink as unlink_segment
 
 _HEADER = struct.Struct("<Q")
 SHARED_PART = 1 << 20  # bytes of arrays from which a scene part reaches the workers through shared memory
@@ -283,13 +282,19 @@ class WorkerPool:
 
     def __init__(self, n: int):
         self.n = n
-        self.counter = shared_memory.SharedMemory(create=True, size=8)  # the cancel epoch
-        self.epoch = np.ndarray((1,), np.int64, buffer=self.counter.buf)
-        self.epoch[0] = 0
-        self.workers = [_Worker() for _ in range(n)]
-        for w in self.workers:
-            w.send(("cancel", self.counter.name))
+        self.counter = create_segment(8)  # the cancel epoch
+        self.workers = []
         self.digests = {}  # part name -> digest of the scene part the workers hold
+        try:  # interrupted while the workers start (a signal): nothing may outlive the pool
+            self.epoch = np.ndarray((1,), np.int64, buffer=self.counter.buf)
+            self.epoch[0] = 0
+            for _ in range(n):
+                self.workers.append(_Worker())
+            for w in self.workers:
+                w.send(("cancel", self.counter.name))
+        except BaseException:
+            self.close(kill=True)
+            raise
 
     def load(self, scene) -> dict:
         """Send `scene`, only the parts that changed since the last load; wait until every
@@ -342,11 +347,7 @@ class WorkerPool:
         for w in self.workers:
             w.close(kill)
         self.epoch = None
-        try:
-            self.counter.unlink()
-            self.counter.close()
-        except (FileNotFoundError, BufferError):  # pragma: no cover - already gone / a view alive
-            pass
+        unlink_segment(self.counter)
 
 
 _kept: list = []  # the pool a persistent render left for the next one (at most one)

@@ -427,11 +427,12 @@ class PhotonIntegrator(Integrator):
         if emits.any():
             r = np.flatnonzero(emits)
             prim, pm = hit.prim[r], rays.pdf_prev[r]
-            cos_l = np.abs(dot(take(rays.d, r), hit.take(r).ng))
-            pdf_light = lights.pdf_triangle_hit(prim, take(rays.o64, r), hit.t[r], cos_l)
+            at = hit.take(r)
+            cos_l = np.abs(dot(take(rays.d, r), at.ng))
+            pdf_light = lights.pdf_triangle_hit(prim, take(rays.o64, r), hit.t[r], cos_l, at.b)
             w = np.where(rays.no_mis[r], 1.0, pm / np.maximum(pm + pdf_light, 1e-300))
             Le = emitted(self.scene, self.programs, self.flat_normal, take(self.scene.materials.emission,
-                         self.scene.mesh.material[prim]), hit.take(r), take(rays.d, r))
+                         self.scene.mesh.material[prim]), at, take(rays.d, r))
             _accumulate(out, idx[r], take(rays.beta, r) * scale(Le, w))
 
     def _photon_radiance(self, out, paths: PathState, wo, stores) -> None:
