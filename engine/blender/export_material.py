@@ -3,10 +3,10 @@
 The active Material Output (target ALL or CYCLES) Surface link is converted the way Cycles
 builds its closures (blender/blender intern/cycles/kernel/svm/closure.h):
 
-  Diffuse BSDF       Color -> diffuse (Roughness > 0, Oren-Nayar: approximated as Lambert)
-  Glossy BSDF        Color, Roughness -> GGX reflection with F = Color (no Fresnel, as Cycles);
-                     Multiscatter GGX is rendered as single-scattering GGX (slightly darker at
-                     high roughness), Beckmann / Ashikhmin-Shirley as GGX
+  Diffuse BSDF       Color -> diffuse (Roughness > 0: Cycles' energy-preserving Oren-Nayar)
+  Glossy BSDF        Color, Roughness -> microfacet reflection with F = Color (no Fresnel, as
+                     Cycles): Multiscatter GGX (Cycles' energy factor on GGX,
+                     engine/bsdf/multiscatter.py), GGX, Beckmann, Ashikhmin-Shirley
   Metallic BSDF      Base Color (F0), Edge Tint (F82), Roughness -> GGX conductor (F82 tint);
                      Physical Conductor (IOR / Extinction) -> F82 with the IOR's F0
   Glass BSDF         Color, Roughness, IOR -> dielectric, exact Fresnel, sharp at roughness 0
@@ -308,7 +308,8 @@ class _Converter:
         if src.uv_map:  # the tangents of the render UV map only here (the node evaluator reads any)
             self.note(f"'{src.name}' on UV map '{src.uv_map}' (read as the render UV map)")
         color, slot = self.color(src, "Color")
-        if slot < 0:
+        if slot < 0:  # a constant colour still tilts the normal: only the node evaluator has it
+            self.note(f"'{src.name}' without an image (ignored)")
             return
         strength = self.constant(src, "Strength")
         if self.normal is not None and self.normal != (slot, strength):

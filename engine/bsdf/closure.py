@@ -33,7 +33,8 @@ from .. import sampling, textures
 from ..scene import Scene
 from ..vec import dot, gatherer, max3, normalize, scale, take
 from .lobes import LOBES, NEEDS_SIDE, RAYS, REFLECTION_CLASS, STRAIGHT, TRANSMISSION_CLASS, inputs
-from .lobes.base import LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT, Params, SurfaceLobe
+from .lobes.base import (CLASS_DIFFUSE, LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT, Params,
+                         SurfaceLobe)
 from ..nodes.hits import SurfaceHits
 from .normal_map import normal_map, valid_reflection_normal
 
@@ -133,12 +134,20 @@ class Closure:
                                    m.normal_tex[mat]])
         uv = textures.mesh_uv(scene.mesh.uvs, prim, bary) if np.any(textured >= 0) else None
         values = {}
+        self.n_smooth = ns  # Cycles' sd->N, before a BSDF's own Normal or a normal map
         if programs and programs.has[mat].any():  # node programs: inputs per point, perhaps a normal
             hits = SurfaceHits(scene, prim, bary, p, ns, ng, wo, ray=ray)
-            values, normal, rows = programs.pair_values(mat, self.pair_offset, len(lobe), hits)
+            values, normal, rows, smooth = programs.pair_values(mat, self.pair_offset, len(lobe), hits)
             if normal is not None:
                 ns = ns.copy()
                 ns[rows] = valid_reflection_normal(ng[rows], wo[rows], normalize(normal))
+                bumped = np.flatnonzero(np.isfinite(smooth[:, 0]))
+                if len(bumped):  # a displacement's bump is Cycles' sd->N itself
+                    self.n_smooth = self.n_smooth.copy()
+                    s = normalize(smooth[bumped])
+                    s = s * np.where(dot(s, ng[rows[bumped]]) < 0, -1.0, 1.0)[:, None]
+                    same = np.all(normal[bumped] == smooth[bumped], axis=1)  # no Normal of its own
+                    self.n_smooth[rows[bumped]] = np.where(same[:, None], ns[rows[bumped]], s)
         src = inputs.Sources(uv, values)
         mapped = np.any(m.normal_tex[mat] >= 0)
         outward = None  # the triangles' winding normals, only where glass or a normal map needs them
@@ -279,6 +288,31 @@ class Closure:
                     f[r], pdf[r] = g.lobe.eval(self._params(g, pairs[r]), take(wo, r), take(wi, r))
         return f * take(self.weight, pairs), pdf
 
+    def _bump_shadowing(self, pairs, owner, rows, wi, cos_ni):
+        """(P,) Cycles' bump_shadowing_term (closure/bsdf.h, after Conty Estevez et al. 2019) of
+        pairs at world directions wi (K,3) of the points rows (K,), cos_ni (K,) = wi.ns; None
+        where no point's shading normal differs from its smooth one. A direction on different
+        sides of the smooth normal and of the shading normal (light through the back of the
+        geometry a normal map tilts towards it) counts 0; a diffuse lobe's light is softened
+        towards grazing by a GGX shadowing term whose roughness grows with the normal's tilt
+        (the material's Bump Map Correction, on by default)."""
+        if self.n_smooth is self.ns:
+            return None
+        ns_s, n = take(self.n_smooth, rows), take(self.ns, rows)
+        if np.array_equal(ns_s, n):
+            return None
+        cos_si, cos_sn = dot(wi, ns_s), dot(ns_s, n)
+        tilted = np.any(ns_s != n, axis=1)
+        factor = np.where(tilted & (cos_si * cos_sn * cos_ni < 0.0), 0.0, 1.0)
+        cos_i, cos_d = np.abs(cos_si), np.abs(cos_sn)
+        soft = tilted & (cos_d < 1.0) & (cos_i < 1.0)
+        alpha2 = np.clip(0.125 * (1.0 / np.maximum(cos_d, 1e-12) ** 2 - 1.0), 0.0, 1.0)
+        tan2 = 1.0 / np.maximum(cos_i, 1e-6) ** 2 - 1.0
+        g = np.where(cos_i < 1e-6, 0.0, 1.0 / (1.0 + 0.5 * (np.sqrt(1.0 + alpha2 * tan2) - 1.0)))
+        diffuse_factor = factor * np.where(soft, g, 1.0)
+        diffuse = REFLECTION_CLASS[self.pair_kind[pairs]] == CLASS_DIFFUSE  # Cycles' CLOSURE_IS_BSDF_DIFFUSE
+        return np.where(diffuse, diffuse_factor[owner], factor[owner])
+
     def _mixture(self, rows: np.ndarray, wi: np.ndarray, visible=None):
         """f (K,3) and mixture pdf (K,) of the points `rows` (K,) for world directions wi (K,3);
         visible (K,) RAY_* bits of a light: lobes it does not light are left out."""
@@ -293,6 +327,9 @@ class Closure:
             pairs, owner = pairs[lit], owner[lit]
         f_pair, pdf_pair = self._eval_pairs(pairs, take(self.wo_local, rows[owner]), take(wi_local, owner))
         pdf_pair = self.pair_select[pairs] * pdf_pair
+        bump = self._bump_shadowing(pairs, owner, rows, wi, wi_local[:, 2])
+        if bump is not None:
+            f_pair, pdf_pair = scale(f_pair, bump), np.where(bump > 0, pdf_pair, 0.0)
         if self.single:
             f = np.zeros((k, 3))
             pdf = np.zeros(k)
@@ -316,6 +353,9 @@ class Closure:
         agree = (dot(wi, at(self.ng)) > 0) == (wi_local[:, 2] > 0)
         pairs, owner = self._pairs_of(rows)
         f_pair, _ = self._eval_pairs(pairs, take(self.wo_local, rows[owner]), take(wi_local, owner))
+        bump = self._bump_shadowing(pairs, owner, rows, wi, wi_local[:, 2])
+        if bump is not None:
+            f_pair = scale(f_pair, bump)
         kind = self.pair_kind[pairs]
         cls = np.where(wi_local[owner, 2] < 0, TRANSMISSION_CLASS[kind], REFLECTION_CLASS[kind])
         out = np.zeros((k * 3, 3))
@@ -441,6 +481,9 @@ class Closure:
                 f, p = self._eval_pairs(pick[s], take(wo, s), take(wi_local, s))
                 agree = (dot(take(wi, rows), take(self.ng, rows)) > 0) == (wi_local[s, 2] > 0)
                 f, p = scale(f, agree), np.where(agree, p * share[s], 0.0)
+                bump = self._bump_shadowing(pick[s], np.arange(len(s)), rows, take(wi, rows), wi_local[s, 2])
+                if bump is not None:
+                    f, p = scale(f, bump), np.where(bump > 0, p, 0.0)
             else:
                 f, p = self._mixture(rows, take(wi, rows))
             cos = np.abs(wi_local[s, 2])

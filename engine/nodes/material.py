@@ -122,7 +122,8 @@ class MaterialProgram:
 
     def evaluate(self, state: ShadingState):
         """At the points of `state`: ([{input: (N,...) value} per lobe, with "weight" (N,3)],
-        emitted radiance (N,3), shading normal (N,3) or None)."""
+        emitted radiance (N,3), shading normal (N,3) or None, the displacement's bump normal
+        (N,3) or None: Cycles' sd->N, which a BSDF's own Normal is compared with)."""
         n = state.n
         bumped = None
         if self.displacement is not None:  # set_normal: N is the displacement's bump normal from here on
@@ -142,7 +143,7 @@ class MaterialProgram:
             if c.kind == "emission":
                 emission = emission + c.weight
         normal = next((np.broadcast_to(c.params["normal"], (n, 3)) for c in bsdfs if "normal" in c.params), bumped)
-        return lobes, emission, normal
+        return lobes, emission, normal, bumped
 
 
 class _Through:
@@ -256,12 +257,13 @@ class MaterialPrograms:
     def pair_values(self, mat: np.ndarray, pair_offset: np.ndarray, n_pairs: int, hits):
         """For the N points of a closure (mat (N,) their materials, pair_offset (N+1,) where each
         point's lobes start in the pair table): ({input: (values (P,...), has (P,) bool)} of
-        the pairs whose material's program computes them, normal (N,3) with rows (K,) of the
-        points it replaces, or (None, None)). hits: a SurfaceHits of the N points (with the
-        path's record of them, SurfaceHits' ray)."""
-        values, normal, normal_rows = {}, [], []
+        the pairs whose material's program computes them, normal (K,3) with rows (K,) of the
+        points it replaces and their smooth normal (K,3) (the displacement's bump normal where
+        there is one, else NaN: the interpolated normal), or (None, None, None)). hits: a
+        SurfaceHits of the N points (with the path's record of them, SurfaceHits' ray)."""
+        values, normal, normal_rows, smooth = {}, [], [], []
         for mp, rows, state in self._batches(mat, hits, self.has):
-            lobes, _, n = mp.evaluate(state)
+            lobes, _, n, bumped = mp.evaluate(state)
             for k, lobe in enumerate(lobes):
                 pairs = pair_offset[rows] + k
                 for name, v in lobe.items():
@@ -273,9 +275,10 @@ class MaterialPrograms:
             if n is not None:
                 normal.append(n)
                 normal_rows.append(rows)
+                smooth.append(bumped if bumped is not None else np.full((len(rows), 3), np.nan))
         if not normal:
-            return values, None, None
-        return values, np.concatenate(normal), np.concatenate(normal_rows)
+            return values, None, None, None
+        return values, np.concatenate(normal), np.concatenate(normal_rows), np.concatenate(smooth)
 
     def emission(self, mat: np.ndarray, hits) -> np.ndarray | None:
         """(N,3) emitted radiance of N hits where some material's emission varies, else None."""
