@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..nodes import light_path as lp
 from ..nodes.closures import closures
+from ..nodes.hits import EMISSION_RAY, PathFields
 from ..nodes.program import compile
 from ..nodes.state import ShadingState
 from ..scene import LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, Lights
@@ -34,8 +34,10 @@ from .world import ZeroFields
 _FLT_MAX = float(np.finfo(np.float32).max)
 
 
-class _LightPoints(ZeroFields):
+class _LightPoints(ZeroFields, PathFields):
     """State source of N points on one light (see the module docstring)."""
+
+    ray = EMISSION_RAY  # Cycles evaluates a light's shader with PATH_RAY_EMISSION, no bounce
 
     def __init__(self, lights: Lights, i: int, P, Ng, I, t):
         self._lights, self._i = lights, i
@@ -85,13 +87,6 @@ class _LightPoints(ZeroFields):
 
     generated = object
 
-    def path_flag(self):
-        return np.full(len(self._P), lp.EMISSION, np.uint32)
-
-    def bounce(self):
-        return np.zeros(len(self._P))
-
-    diffuse_bounce = glossy_bounce = transmission_bounce = transparent_bounce = portal_bounce = bounce
 
 
 class LightShaders:

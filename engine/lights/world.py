@@ -52,7 +52,7 @@ from .. import sampling
 from ..nodes import atmosphere
 from ..nodes.closures import closures
 from ..nodes.graph import Graph
-from ..nodes.hits import EMISSION_RAY, PATH_FIELDS, RayState
+from ..nodes.hits import EMISSION_RAY, PATH_FIELDS, PathFields, RayState
 from ..nodes.program import compile
 from ..nodes.sky import _DEFAULTS as SKY_DEFAULTS, scattering_sun_direction
 from ..nodes.state import ShadingState
@@ -88,12 +88,12 @@ class ZeroFields:
         raise AttributeError(name)
 
 
-class _Directions(ZeroFields):
+class _Directions(ZeroFields, PathFields):
     """The shading state source of N background points (see the module docstring): d (N,3)
     unit directions, ray a RayState of the rays, camera a scene Camera or None."""
 
     def __init__(self, d, ray: RayState, camera=None):
-        self._d, self._ray, self._camera = d, ray, camera
+        self._d, self.ray, self._camera = d, ray, camera
 
     def __len__(self):
         return len(self._d)
@@ -157,30 +157,6 @@ class _Directions(ZeroFields):
         x = (c[:, 0] / depth - left) / (right - left)
         y = (c[:, 1] / depth - bottom) / (top - bottom)
         return np.stack([x, y, np.zeros(len(c))], axis=1)
-
-    def path_flag(self):
-        return np.broadcast_to(np.asarray(self._ray.flag, np.uint32), (len(self._d),))
-
-    def _count(self, name):
-        return np.broadcast_to(np.asarray(getattr(self._ray, name), np.float64), (len(self._d),))
-
-    def bounce(self):
-        return self._count("bounce")
-
-    def diffuse_bounce(self):
-        return self._count("diffuse_bounce")
-
-    def glossy_bounce(self):
-        return self._count("glossy_bounce")
-
-    def transmission_bounce(self):
-        return self._count("transmission_bounce")
-
-    def transparent_bounce(self):
-        return self._count("transparent_bounce")
-
-    def portal_bounce(self):
-        return np.zeros(len(self._d))
 
 
 def camera_frame(camera) -> np.ndarray:

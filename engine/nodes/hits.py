@@ -144,7 +144,36 @@ def camera_footprint(scene: Scene, p: np.ndarray) -> np.ndarray:
     return dP + t * dD
 
 
-class SurfaceHits:
+class PathFields:
+    """The state fields a path gives (Light Path's), read from the RayState `self.ray` of a
+    state source of len(self) points."""
+
+    def _per_point(self, value, dtype):
+        return np.broadcast_to(np.asarray(value, dtype), (len(self),))
+
+    def path_flag(self):
+        return self._per_point(self.ray.flag, np.uint32)
+
+    def bounce(self):
+        return self._per_point(self.ray.bounce, np.int64)
+
+    def diffuse_bounce(self):
+        return self._per_point(self.ray.diffuse_bounce, np.int64)
+
+    def glossy_bounce(self):
+        return self._per_point(self.ray.glossy_bounce, np.int64)
+
+    def transmission_bounce(self):
+        return self._per_point(self.ray.transmission_bounce, np.int64)
+
+    def transparent_bounce(self):
+        return self._per_point(self.ray.transparent_bounce, np.int64)
+
+    def portal_bounce(self):  # Ember has no Ray Portal BSDF
+        return np.zeros(len(self), np.int64)
+
+
+class SurfaceHits(PathFields):
     """Fields of N hits: prim (N,) triangles, bary (N,3) barycentrics over the stored corners, p
     (N,3) positions, ns and ng (N,3) shading and geometric normals facing the incoming ray, wo
     (N,3) toward it; t (N,) the ray's length to the hit, or None (Light Falloff's ray length
@@ -155,6 +184,9 @@ class SurfaceHits:
         self._p, self._ns, self._ng, self._wo, self._t = p, ns, ng, wo, t
         self.ray = CAMERA_RAY if ray is None else ray
         self._memo: dict = {}
+
+    def __len__(self):
+        return len(self.prim)
 
     def state(self) -> ShadingState:
         return ShadingState(len(self.prim), source=self)
@@ -400,35 +432,11 @@ class SurfaceHits:
             return camera_footprint(self.scene, self._p)
         return np.broadcast_to(np.asarray(dp, np.float64), (len(self.prim),))
 
-    def path_flag(self):
-        return np.broadcast_to(np.asarray(self.ray.flag, np.uint32), (len(self.prim),))
-
-    def _count(self, name):
-        return np.broadcast_to(np.asarray(getattr(self.ray, name), np.int64), (len(self.prim),))
-
-    def bounce(self):
-        return self._count("bounce")
-
-    def diffuse_bounce(self):
-        return self._count("diffuse_bounce")
-
-    def glossy_bounce(self):
-        return self._count("glossy_bounce")
-
-    def transmission_bounce(self):
-        return self._count("transmission_bounce")
-
-    def transparent_bounce(self):
-        return self._count("transparent_bounce")
-
     def ray_queries(self):
         return self.ray.rays
 
     def min_ray_pdf(self):
         return np.broadcast_to(np.asarray(self.ray.min_ray_pdf, np.float64), (len(self.prim),))
-
-    def portal_bounce(self):  # Ember has no Ray Portal BSDF
-        return np.zeros(len(self.prim), np.int64)
 
     # --- object and material -----------------------------------------------------------------
     def _object_info(self, columns):
