@@ -22,16 +22,15 @@ import math
 
 import numpy as np
 import pytest
-from scipy import stats as st
 
 bpy = pytest.importorskip("bpy")
 
 import ember  # noqa: E402
-from ember.engine.blender import final  # noqa: E402
 from ember.engine.blender.export import export_scene  # noqa: E402
 
 import node_bake  # noqa: E402
-from stats import sidak_alpha  # noqa: E402
+
+from cycles_renders import agree, cycles_image, ember_image  # noqa: E402
 
 pytestmark = pytest.mark.blender
 TEXELS = 16  # the images' size
@@ -274,54 +273,11 @@ def _render_scene(path):
     return sc
 
 
-class _Film:
-    film = None
-
-    def on_progress(self, layer, progress):
-        self.film = progress.film
-
-
-def _ember(sc, seed):
-    sc.render.engine = "EMBER"
-    sc.ember.integrator, sc.ember.samples, sc.ember.seed = "PATH", EMBER_SAMPLES, seed
-    grab = _Film()
-    final.listeners.append(grab)
-    try:
-        bpy.ops.render.render()
-    finally:
-        final.listeners.remove(grab)
-    return grab.film.mean().reshape(SIZE, SIZE, 3)
-
-
-def _cycles(sc, seed, path):
-    sc.render.engine = "CYCLES"
-    sc.cycles.samples, sc.cycles.seed = CYCLES_SAMPLES, seed
-    sc.render.filepath = str(path)
-    sc.render.image_settings.file_format = "OPEN_EXR"
-    bpy.ops.render.render(write_still=True)
-    img = bpy.data.images.load(str(path))
-    pixels = np.array(img.pixels[:]).reshape(SIZE, SIZE, 4)[::-1, :, :3]
-    bpy.data.images.remove(img)
-    return pixels
-
-
-def _regions(images):
-    h = SIZE // 2
-    quads = [(slice(None), slice(None)), (slice(0, h), slice(0, h)), (slice(0, h), slice(h, None)),
-             (slice(h, None), slice(0, h)), (slice(h, None), slice(h, None))]
-    return np.array([[img[q].mean() for q in quads] for img in images])
-
-
 def test_the_imported_material_renders_as_cycles(gltf_file, tmp_path):
     sc = _render_scene(gltf_file)
-    cycles = np.array([_cycles(sc, 100 + k, tmp_path / f"cycles{k}.exr") for k in range(SEEDS)])
-    ember_images = np.array([_ember(sc, k) for k in range(SEEDS)])
-    e, c = _regions(ember_images), _regions(cycles)
-    diff = e.mean(axis=0) - c.mean(axis=0)
-    se = np.sqrt(e.var(axis=0, ddof=1) / SEEDS + c.var(axis=0, ddof=1) / SEEDS)
-    t = st.t.ppf(1 - sidak_alpha(0.01, e.shape[1]) / 2, SEEDS - 1)
-    ok = np.abs(diff) <= TOL * np.abs(c.mean(axis=0)) + t * se
-    assert ok.all(), f"Ember / Cycles region means {e.mean(0) / c.mean(0)}, noise band {t * se / c.mean(0)}"
+    cycles = np.array([cycles_image(sc, CYCLES_SAMPLES, 100 + k, tmp_path / f"cycles{k}.exr") for k in range(SEEDS)])
+    ember_images = np.array([ember_image(sc, "PATH", EMBER_SAMPLES, k) for k in range(SEEDS)])
+    agree(ember_images, cycles, 1, TOL)
     # Per pixel: the squared difference of the two means, relative as relMSE weighs it, is
     # what their noise explains (its expectation from the between-seed variances), within
     # NOISE_RATIO: a pattern wrong in places (a swapped map, a lost normal map) shows here.

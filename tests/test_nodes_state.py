@@ -19,20 +19,17 @@ import pickle
 
 import numpy as np
 import pytest
-from scipy import stats as st
 
 bpy = pytest.importorskip("bpy")
 
 import ember  # noqa: E402
 import node_bake  # noqa: E402
-from ember.engine.blender import final  # noqa: E402
 from ember.engine.blender.export import export_scene  # noqa: E402
 from ember.engine.nodes.hits import RayState, SurfaceHits  # noqa: E402
 from ember.engine.nodes.material import MaterialPrograms  # noqa: E402
 from ember.engine.nodes.state import ShadingState  # noqa: E402
 from ember.engine.scene import Scene, part_digest, recentred, scene_from_plain, to_plain  # noqa: E402
-
-from stats import sidak_alpha  # noqa: E402
+from cycles_renders import agree, cycles_image, ember_image  # noqa: E402
 
 pytestmark = pytest.mark.blender
 
@@ -513,54 +510,6 @@ def light_path_scene():
     return sc
 
 
-class _Film:
-    def on_progress(self, layer, progress):
-        self.film = progress.film
-
-
-def _ember(sc, seed):
-    sc.render.engine = "EMBER"
-    sc.ember.integrator, sc.ember.samples, sc.ember.seed = "PATH", EMBER_SAMPLES, seed
-    grab = _Film()
-    final.listeners.append(grab)
-    try:
-        bpy.ops.render.render()
-    finally:
-        final.listeners.remove(grab)
-    return grab.film.mean().reshape(SIZE, SIZE, 3)
-
-
-def _cycles(sc, seed, path):
-    sc.render.engine = "CYCLES"
-    sc.cycles.samples, sc.cycles.seed = CYCLES_SAMPLES, seed
-    sc.render.filepath = str(path)
-    sc.render.image_settings.file_format = "OPEN_EXR"
-    bpy.ops.render.render(write_still=True)
-    img = bpy.data.images.load(str(path))
-    pixels = np.array(img.pixels[:]).reshape(SIZE, SIZE, 4)[::-1, :, :3]
-    bpy.data.images.remove(img)
-    return pixels
-
-
-def _regions(images):
-    """(SEEDS, 5) means over the image and its four quadrants (all channels)."""
-    h = SIZE // 2
-    quads = [(slice(None), slice(None)), (slice(0, h), slice(0, h)), (slice(0, h), slice(h, None)),
-             (slice(h, None), slice(0, h)), (slice(h, None), slice(h, None))]
-    return np.array([[img[q].mean() for q in quads] for img in images])
-
-
-def _agree(ember_images, cycles_images, n_tests):
-    """Region means within TOL plus the Sidak-corrected noise band; returns the ratios."""
-    e, c = _regions(ember_images), _regions(cycles_images)
-    diff = e.mean(axis=0) - c.mean(axis=0)
-    se = np.sqrt(e.var(axis=0, ddof=1) / SEEDS + c.var(axis=0, ddof=1) / SEEDS)
-    t = st.t.ppf(1 - sidak_alpha(0.01, n_tests * e.shape[1]) / 2, SEEDS - 1)
-    ok = np.abs(diff) <= TOL * np.abs(c.mean(axis=0)) + t * se
-    assert ok.all(), f"Ember / Cycles region means {e.mean(0) / c.mean(0)}, noise band {t * se / c.mean(0)}"
-    return e.mean(axis=0) / c.mean(axis=0)
-
-
 SCENES = {"attributes": attributes_scene, "objects": objects_scene, "normals": normals_scene,
           "light_path": light_path_scene}
 
@@ -568,6 +517,6 @@ SCENES = {"attributes": attributes_scene, "objects": objects_scene, "normals": n
 @pytest.mark.parametrize("name", list(SCENES))
 def test_materials_reading_the_state_render_as_cycles(name, tmp_path):
     sc = SCENES[name]()
-    cycles = [_cycles(sc, 100 + k, tmp_path / f"cycles{k}.exr") for k in range(SEEDS)]
-    ember_images = [_ember(sc, k) for k in range(SEEDS)]
-    _agree(ember_images, cycles, len(SCENES))
+    cycles = [cycles_image(sc, CYCLES_SAMPLES, 100 + k, tmp_path / f"cycles{k}.exr") for k in range(SEEDS)]
+    ember_images = [ember_image(sc, "PATH", EMBER_SAMPLES, k) for k in range(SEEDS)]
+    agree(ember_images, cycles, len(SCENES), TOL)
