@@ -750,7 +750,7 @@ def _run_farm(args, argv, blend, output, kind, scene, frames, t_start) -> int:
     """--scheduler: frames and sample ranges as Dask tasks (engine/parallel/farm.py); each
     frame is merged and written as soon as its parts are in."""
     from ember.engine import imageio
-    from ember.engine.merge import MergeError, Part, merge
+    from ember.engine.merge import MergeError, Part, merge_channels
     from ember.engine.parallel import farm
 
     if kind != ".exr":
@@ -800,7 +800,7 @@ def _run_farm(args, argv, blend, output, kind, scene, frames, t_start) -> int:
             parts[task.frame].append(result["exr"])
             if len(parts[task.frame]) == expected[task.frame]:
                 path = frame_path(output, task.frame, numbered)
-                _write_farm_frame(path, parts.pop(task.frame), imageio, Part, merge)
+                _write_farm_frame(path, parts.pop(task.frame), imageio, Part, merge_channels)
                 print(f"Ember: {blend.name} frame {task.frame} -> {path}: {expected[task.frame]} part(s)", flush=True)
     except farm.RenderTaskError as e:
         print(f"render.py: error: {e}", file=sys.stderr)
@@ -839,8 +839,8 @@ def _auto_for_parts(scene) -> list[str]:
     return out
 
 
-def _write_farm_frame(path, datas, imageio, Part, merge) -> None:
-    """One part: its bytes as they are; several: merged (engine/merge.py)."""
+def _write_farm_frame(path, datas, imageio, Part, merge_channels) -> None:
+    """One part: its bytes as they are; several: merged (engine/merge.py), every channel."""
     if len(datas) == 1:
         def write(tmp):
             with open(tmp, "wb") as fh:
@@ -854,8 +854,14 @@ def _write_farm_frame(path, datas, imageio, Part, merge) -> None:
             part.write_bytes(data)
             channels, header = imageio.read_exr(part)
             parts.append(Part.from_exr(f"{path.name} part {i}", channels, header))
-    image, header = merge(parts)
-    imageio.save_rgba_exr(path, image, header)
+    _save_merged(imageio, path, *merge_channels(parts))
+
+
+def _save_merged(imageio, path, channels: dict, header: dict) -> None:
+    """A merge's channels (RGBA, or a multilayer file's every pass) through a checked write."""
+    shape = next(iter(channels.values())).shape
+    imageio.write_atomically(path, lambda tmp: imageio.write_exr(tmp, channels, header),
+                             lambda tmp: imageio.check_exr(tmp, shape))
 
 
 class _Job:
@@ -981,7 +987,7 @@ def run_merge(argv: list[str]) -> int:
         raise UsageError(f"merge writes an .exr, got {str(output)!r}")
     _load_ember()
     from ember.engine import imageio
-    from ember.engine.merge import MergeError, Part, merge
+    from ember.engine.merge import MergeError, Part, merge_channels
     parts = []
     for name in args.parts:
         path = pathlib.Path(name)
@@ -996,16 +1002,17 @@ def run_merge(argv: list[str]) -> int:
         except MergeError as e:
             raise UsageError(str(e))
     try:
-        image, header = merge(parts)
+        channels, header = merge_channels(parts)
     except MergeError as e:
         raise UsageError(str(e))
     imageio.remove_stale_temporaries(output)
     try:
-        imageio.save_rgba_exr(output, image, header)
+        _save_merged(imageio, output, channels, header)
     except imageio.OutputError as e:
         print(f"render.py: error: {e}", file=sys.stderr)
         return EXIT_FAILED
-    print(f"Ember: merged {len(parts)} parts -> {output}: {image.shape[1]}x{image.shape[0]}, "
+    h, w = next(iter(channels.values())).shape
+    print(f"Ember: merged {len(parts)} parts -> {output}: {w}x{h}, "
           f"samples {header['ember/sampleRange']}", flush=True)
     return EXIT_OK
 

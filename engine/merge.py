@@ -7,6 +7,10 @@ mean over a union of disjoint ranges is the sample-count-weighted mean of the pa
     merged(p) = sum_i n_i(p) m_i(p) / sum_i n_i(p),    n_i(p) = N_i inside part i's border, else 0
 
 equal to the render of all the samples at once up to float32 rounding of the stored means.
+Every channel merges so: colour and alpha (a transparent film's coverage is a mean too), and
+each render pass of a multilayer part, with the pass's own inverse where it is not stored as
+a plain mean (engine/passes.py: Direct and Indirect are divided by their Color, Depth holds
+DEPTH_MISS where no sample hit, the variance of a mean combines with weights n_i^2 / N^2).
 The counts and borders come from the parts' EXR metadata (render.py writes them). Parts must
 show the same scene and settings (scene digest, engine.scene.scene_digest) and seed, and no
 pixel may get the same sample twice.
@@ -14,19 +18,64 @@ pixel may get the same sample twice.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from .passes import COMBINED, DEPTH_MISS, LOBE_CLASSES
 
 
 class MergeError(ValueError):
     """Parts that cannot be merged: the message names them and says why."""
 
 
+def _whole(header: dict, key: str, name: str, minimum: int) -> int:
+    """A whole-number metadata entry of at least `minimum`, or MergeError naming it."""
+    value = header.get(key)
+    if value is None:
+        raise MergeError(f"{name} has no {key} metadata")
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise MergeError(f"{name} has a malformed {key} ({value!r}): expected a whole number") from None
+    if not (math.isfinite(number) and number == int(number)):
+        raise MergeError(f"{name} has a malformed {key} ({value!r}): expected a whole number")
+    if number < minimum:
+        raise MergeError(f"{name} has {key} {int(number)}: it must be at least {minimum}")
+    return int(number)
+
+
+def _border(header: dict, name: str, shape: tuple) -> tuple:
+    """(x0, y0, x1, y1) pixels of ember/border inside the (H, W) image, or MergeError."""
+    text = header.get("ember/border")
+    try:
+        values = json.loads(text) if isinstance(text, str) else text
+        border = tuple(int(v) for v in values)
+        if len(border) != 4 or any(b != v for b, v in zip(border, values)):
+            raise ValueError
+    except (TypeError, ValueError):
+        raise MergeError(f"{name} has a malformed ember/border ({text!r}): expected [x0, y0, x1, y1]") from None
+    x0, y0, x1, y1 = border
+    h, w = shape
+    if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
+        raise MergeError(f"{name} has ember/border {list(border)} outside its {w}x{h} image or empty")
+    return border
+
+
+def _combined_prefix(channels: dict) -> str:
+    """'' for a plain RGBA file, '<layer>.Combined.' for a multilayer one."""
+    if all(c in channels for c in "RGB"):
+        return ""
+    layers = sorted({n[:-len(".Combined.R")] for n in channels if n.endswith(".Combined.R")})
+    return f"{layers[0]}.{COMBINED.name}." if len(layers) == 1 else ""
+
+
 @dataclass(frozen=True)
 class Part:
     name: str
-    rgb: np.ndarray  # (H, W, 3) float32 means, zero outside the border
+    channels: dict  # channel name -> (H, W) float32 means, zero outside the border
+    prefix: str  # of the Combined channels: '' (R, G, B, A) or '<layer>.Combined.'
     samples: int
     offset: int
     seed: int
@@ -48,17 +97,37 @@ class Part:
             raise MergeError(f"{name} is a merge whose pixels or sample ranges are uneven: merge its parts instead")
         if not header["ember/sceneDigest"]:
             raise MergeError(f"{name} has no scene digest")
-        missing = [c for c in "RGB" if c not in channels]
+        prefix = _combined_prefix(channels)
+        missing = [c for c in "RGB" if prefix + c not in channels]
         if missing:
-            raise MergeError(f"{name} has no {', '.join(missing)} channel")
-        rgb = np.stack([channels[c] for c in "RGB"], axis=-1).astype(np.float32)
-        border = tuple(int(v) for v in json.loads(header["ember/border"]))
-        return cls(name, rgb, int(header["ember/samples"]), int(header["ember/sampleOffset"]),
-                   int(header["ember/seed"]), header["ember/sceneDigest"], border, header)
+            raise MergeError(f"{name} has no {', '.join(prefix + c for c in missing)} channel")
+        shape = channels[prefix + "R"].shape
+        if any(np.shape(c) != shape for c in channels.values()):
+            raise MergeError(f"{name} has channels of different sizes")
+        border = _border(header, name, shape)
+        for c in channels:
+            layer, pass_name = _pass_of(c)
+            kind, _, part = pass_name.rpartition(" ")
+            if part in ("Direct", "Indirect") and kind in LOBE_CLASSES and f"{layer}{kind} Color.R" not in channels:
+                raise MergeError(f"{name} has the {pass_name} pass without {kind} Color, which it is divided by: "
+                                 "it cannot be merged exactly (render the parts again with this version)")
+        samples = _whole(header, "ember/samples", name, 1)
+        offset = _whole(header, "ember/sampleOffset", name, 0)
+        seed = _whole(header, "ember/seed", name, 0)
+        data = {c: np.asarray(v, np.float32) for c, v in channels.items()}
+        if prefix + "A" not in data:  # written before alpha was kept: opaque where rendered
+            data[prefix + "A"] = np.zeros(shape, np.float32)
+            x0, y0, x1, y1 = border
+            data[prefix + "A"][y0:y1, x0:x1] = 1.0
+        return cls(name, data, prefix, samples, offset, seed, header["ember/sceneDigest"], border, header)
+
+    @property
+    def shape(self) -> tuple:
+        return self.channels[self.prefix + "R"].shape
 
     def weights(self) -> np.ndarray:
         """(H, W) samples per pixel: N inside the border, 0 outside."""
-        w = np.zeros(self.rgb.shape[:2])
+        w = np.zeros(self.shape)
         x0, y0, x1, y1 = self.border
         w[y0:y1, x0:x1] = self.samples
         return w
@@ -72,9 +141,12 @@ def _check(parts: list[Part]) -> None:
         if p.seed != first.seed:
             raise MergeError(f"{p.name} has seed {p.seed} but {first.name} seed {first.seed}: parts of one "
                              "frame must share the seed (they are different sample sequences)")
-        if p.digest != first.digest or p.rgb.shape != first.rgb.shape:
+        if p.digest != first.digest or p.shape != first.shape:
             raise MergeError(f"{p.name} and {first.name} show different scenes or settings "
                              "(their scene digests differ): parts must come from the same frame of one .blend")
+        if set(p.channels) != set(first.channels):
+            raise MergeError(f"{p.name} and {first.name} hold different channels or passes: render every part "
+                             "with the same passes")
     for i, a in enumerate(parts):
         for b in parts[i + 1:]:
             ax0, ay0, ax1, ay1 = a.border
@@ -99,19 +171,60 @@ def _ranges(parts: list[Part]) -> str:
     return " ".join(f"[{a}, {b})" for a, b in merged)
 
 
-def merge(parts: list[Part]) -> tuple[np.ndarray, dict]:
-    """(H, W, 4) float32 RGBA (alpha 1 where any part rendered) and the merged metadata."""
+def _pass_of(channel: str) -> tuple[str, str]:
+    """('<layer>.', pass name) of a multilayer channel '<layer>.<pass>.<c>', ('', '') else."""
+    head, _, _ = channel.rpartition(".")
+    layer, dot, name = head.rpartition(".")
+    return (layer + dot, name) if dot else ("", "")
+
+
+def _as_mean(channels: dict) -> dict:
+    """The channels as plain per-sample means (the inverse of Film.pass_image's forms)."""
+    out = dict(channels)
+    for c, v in channels.items():
+        layer, name = _pass_of(c)
+        if name == "Depth":
+            out[c] = np.where(v >= DEPTH_MISS, 0.0, v)
+        elif name.rsplit(" ", 1)[-1] in ("Direct", "Indirect") and name.split(" ")[0] in LOBE_CLASSES:
+            color = channels.get(f"{layer}{name.rsplit(' ', 1)[0]} Color{c[c.rfind('.'):]}")
+            if color is not None:
+                out[c] = v * color
+    return out
+
+
+def _from_mean(channels: dict) -> dict:
+    """Film.pass_image's forms from plain means (after merging)."""
+    out = dict(channels)
+    for c, v in channels.items():
+        layer, name = _pass_of(c)
+        if name == "Depth":
+            out[c] = np.where(v > 0, v, DEPTH_MISS)
+        elif name.rsplit(" ", 1)[-1] in ("Direct", "Indirect") and name.split(" ")[0] in LOBE_CLASSES:
+            color = channels.get(f"{layer}{name.rsplit(' ', 1)[0]} Color{c[c.rfind('.'):]}")
+            if color is not None:
+                out[c] = np.divide(v, color, out=np.zeros_like(v), where=color > 0)
+    return out
+
+
+def merge_channels(parts: list[Part]) -> tuple[dict, dict]:
+    """({channel: (H, W) float32}, merged metadata): every channel of the parts merged."""
     _check(parts)
-    total = np.zeros(parts[0].rgb.shape[:2])
-    acc = np.zeros(parts[0].rgb.shape)
+    total = np.zeros(parts[0].shape)
+    total_sq = np.zeros(parts[0].shape)
+    acc = {c: np.zeros(parts[0].shape) for c in parts[0].channels}
     for p in parts:
         w = p.weights()
         total += w
-        acc += w[..., None] * p.rgb.astype(np.float64)
-    rgba = np.zeros(parts[0].rgb.shape[:2] + (4,), np.float32)
+        total_sq += w * w
+        for c, v in _as_mean(p.channels).items():
+            weight = w * w if _pass_of(c)[1] == "Debug Variance" else w
+            acc[c] += weight * v.astype(np.float64)
     rendered = total > 0
-    rgba[..., :3] = np.where(rendered[..., None], acc / np.maximum(total, 1)[..., None], 0.0)
-    rgba[..., 3] = rendered
+    merged = {}
+    for c, a in acc.items():
+        norm = total * total if _pass_of(c)[1] == "Debug Variance" else total
+        merged[c] = np.where(rendered, a / np.maximum(norm, 1), 0.0)
+    merged = {c: v.astype(np.float32) for c, v in _from_mean(merged).items()}
     ys, xs = np.nonzero(rendered)
     counts = np.unique(total[rendered])
     header = {k: v for k, v in parts[0].header.items() if k.startswith("ember/")}
@@ -119,10 +232,25 @@ def merge(parts: list[Part]) -> tuple[np.ndarray, dict]:
         "ember/samples": int(counts.min()) if len(counts) else 0,
         "ember/sampleOffset": min(p.offset for p in parts),
         "ember/sampleRange": _ranges(parts),
-        "ember/renderSeconds": float(sum(float(p.header.get("ember/renderSeconds", 0.0)) for p in parts)),
+        "ember/renderSeconds": float(sum(_seconds(p.header) for p in parts)),
         "ember/border": [int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1] if len(xs) else [0, 0, 0, 0],
         "ember/mergedParts": len(parts),
     })
     if len(counts) > 1:
         header["ember/samplesPerPixel"] = f"{int(counts.min())}..{int(counts.max())} (parts cover pixels unequally)"
-    return rgba, header
+    return merged, header
+
+
+def _seconds(header: dict) -> float:
+    try:
+        value = float(header.get("ember/renderSeconds", 0.0))
+    except (TypeError, ValueError):
+        return 0.0
+    return value if math.isfinite(value) else 0.0
+
+
+def merge(parts: list[Part]) -> tuple[np.ndarray, dict]:
+    """(H, W, 4) float32 RGBA of the parts' Combined channels and the merged metadata."""
+    channels, header = merge_channels(parts)
+    prefix = parts[0].prefix
+    return np.stack([channels[prefix + c] for c in "RGBA"], axis=-1), header

@@ -25,6 +25,7 @@ import time
 import traceback
 
 from ..errors import Cancelled, EmberError
+from ..passes import needed
 from ..session import RenderSession
 from ..validation import check_frame_memory
 from .export import export_scene
@@ -257,7 +258,9 @@ def _render_layer(engine, depsgraph, writer: ResultWriter, layer: str):
     if missing:
         _report_once(engine, 'WARNING', f"Render passes missing from the result: {', '.join(missing)}")
     writer.stamp(metadata(settings, stats))
-    _notify("on_layer_passes", layer, {name: film.pass_image(name) for name in film.passes_wanted},
+    # Listeners (render.py's EXR) get the Color passes that Direct and Indirect are divided by
+    # too: parts of a frame merge exactly only with them (engine/merge.py).
+    _notify("on_layer_passes", layer, {name: film.pass_image(name) for name in needed(film.passes_wanted)},
             metadata(settings, stats))
     cancelled = bool(getattr(stats, "cancelled", False))
     if not cancelled:
