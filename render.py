@@ -58,6 +58,7 @@ product rather than a parallel path. It follows the render through final.listene
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import pathlib
 import shutil
@@ -628,6 +629,15 @@ def frame_path(path: pathlib.Path, frame: int, numbered: bool) -> pathlib.Path:
     return path.with_name(name)
 
 
+def _load_writers() -> None:
+    """Import what writing a frame imports (OpenEXR's binding, the passes table, the version's
+    TOML reader) while a signal is only a flag."""
+    from ember.engine import imageio, passes  # noqa: F401
+    imageio.load_exr_binding()
+    _version()
+
+
+@functools.lru_cache(maxsize=None)
 def _version() -> str:
     """The add-on's version (blender_manifest.toml)."""
     try:
@@ -890,25 +900,31 @@ class _Job:
             follower._close_bar()
             final.listeners.remove(follower)
         STOP.check()
-        STOP.soft = False  # from here a signal interrupts the write at once
+        _load_writers()  # an import a signal interrupts fails for good (pybind11: ImportError)
+        STOP.soft = False  # from here a signal interrupts the write at once ...
         try:
-            code = self._write(scene, frame, output, follower, blender_error, t_frame, count)
+            STOP.check()  # ... and one that came just before stops it too
+            code, summary = self._write(scene, frame, output, follower, blender_error, t_frame, count)
         finally:
             STOP.soft = True
+        STOP.check()  # a signal while the write ended: the file is whole, but the render stops
+        if summary:
+            print(summary, flush=True)
         return code
 
-    def _write(self, scene, frame, output, follower, blender_error, t_frame, count) -> int:
+    def _write(self, scene, frame, output, follower, blender_error, t_frame, count) -> tuple[int, str]:
+        """Write the frame's file: (exit code, the summary line to print once it is in place)."""
         import bpy
         if follower.errors:
             message, user_error = follower.errors[0]
             print(f"render.py: error: {message}", file=sys.stderr)
-            return EXIT_USAGE if user_error else EXIT_FAILED
+            return (EXIT_USAGE if user_error else EXIT_FAILED), ""
         if blender_error is not None:  # Blender refused before our engine ran (e.g. too small)
             print(f"render.py: error: {blender_error}", file=sys.stderr)
-            return EXIT_USAGE
+            return EXIT_USAGE, ""
         if not follower.layers:
             print("render.py: error: nothing was rendered by Ember (no enabled view layer?)", file=sys.stderr)
-            return EXIT_FAILED
+            return EXIT_FAILED, ""
         w = scene.render.resolution_x * scene.render.resolution_percentage // 100
         h = scene.render.resolution_y * scene.render.resolution_percentage // 100
 
@@ -948,7 +964,7 @@ class _Job:
                 imageio.write_atomically(output, save_png, lambda tmp: imageio.check_png(tmp, size))
         except imageio.OutputError as e:
             print(f"render.py: error: {e}", file=sys.stderr)
-            return EXIT_FAILED
+            return EXIT_FAILED, ""
         if len(follower.layers) > 1 and self.kind == ".exr":
             print(f"note: {len(follower.layers)} view layers rendered; {output} holds '{layer}'",
                   file=sys.stderr)
@@ -968,12 +984,11 @@ class _Job:
         where = f" frame {frame}{count}" if self.numbered else ""
         b = stats.builds
         total = time.perf_counter() - (t_frame if self.numbered else self.t_start)
-        print(f"Ember: {self.blend.name}{where} -> {output}: {w}x{h}, {samples} samples, "
-              f"render {render_s:.2f} s, total {total:.2f} s, "
-              f"{_fmt_rate(rays / max(render_s, 1e-9))}, {stats.processes} worker processes "
-              f"({b.get('workers', 0)} started, {b.get('embree', 0)} Embree and {b.get('lights', 0)} light builds), "
-              f"{nonfinite} non-finite samples{extra}", flush=True)
-        return EXIT_OK
+        return EXIT_OK, (f"Ember: {self.blend.name}{where} -> {output}: {w}x{h}, {samples} samples, "
+                         f"render {render_s:.2f} s, total {total:.2f} s, "
+                         f"{_fmt_rate(rays / max(render_s, 1e-9))}, {stats.processes} worker processes "
+                         f"({b.get('workers', 0)} started, {b.get('embree', 0)} Embree and "
+                         f"{b.get('lights', 0)} light builds), {nonfinite} non-finite samples{extra}")
 
 
 
@@ -1022,7 +1037,9 @@ def main() -> int:
         ([] if IN_BLENDER else sys.argv[1:])
     STOP.install()
     try:
-        return run(argv)
+        code = run(argv)
+        STOP.check()  # a signal the last phase did not poll (a merge, the farm's last frame)
+        return code
     except UsageError as e:
         print(f"render.py: error: {e}", file=sys.stderr)
         return EXIT_USAGE

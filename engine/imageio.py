@@ -35,7 +35,7 @@ from typing import Callable, Iterable
 import numpy as np
 
 __all__ = ["write_exr", "read_exr", "write_rgba_exr", "read_rgb", "OutputError", "write_atomically",
-           "check_png", "check_exr", "remove_stale_temporaries", "save_rgba_exr"]
+           "check_png", "check_exr", "remove_stale_temporaries", "save_rgba_exr", "load_exr_binding"]
 
 # Attributes that write_exr sets itself or the format derives from the pixels.
 _RESERVED = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder",
@@ -48,6 +48,14 @@ _INT32 = (-(2 ** 31), 2 ** 31 - 1)
 def _openexr():
     import OpenEXR  # imported lazily: only I/O needs it
     return OpenEXR
+
+
+def load_exr_binding() -> None:
+    """Import OpenEXR now: an import that a KeyboardInterrupt cuts short leaves the binding
+    unusable in this process (its initialisation fails for good). Its writer imports
+    `fractions` on first use."""
+    import fractions  # noqa: F401
+    _openexr()
 
 
 def _attribute(key: str, value):

@@ -20,7 +20,10 @@ class EmberRenderEngine(bpy.types.RenderEngine):
         self.viewport = viewport.ViewportDriver()
 
     def __del__(self):
-        driver = getattr(self, "viewport", None)
+        try:
+            driver = getattr(self, "viewport", None)
+        except ReferenceError:  # Blender freed the struct first (an interrupted render.py exits)
+            return
         if driver is not None:
             driver.free()
 

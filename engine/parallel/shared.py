@@ -6,7 +6,10 @@ shared, not pickled to every worker). Arrays are named: a later version of a nam
 the earlier one, other names stay current (photon maps, then radiance photons beside them).
 The render process owns the segments and unlinks them on every exit path
 (`Publisher.release`, also run by the session's `finally`; `unlink_all` where a signal ends
-the process at once); workers only attach and close.
+the process at once); workers only attach and close. A process killed outright (SIGKILL, to
+its whole process group: its resource tracker dies with it) cannot clean up, so segments are
+named `ember_<owner pid>_<random>` and the next process that creates one first removes those
+whose owner is gone (`remove_orphans`).
 
 Python 3.11's resource tracker registers every SharedMemory it sees, also in processes that
 merely attach, and would unlink the segment when such a process exits (cpython issue 82300):
@@ -14,19 +17,70 @@ attaching processes unregister it again.
 """
 from __future__ import annotations
 
+import os
+import secrets
 from multiprocessing import resource_tracker, shared_memory
 
 import numpy as np
 
 _ALIGN = 64
 _OWNED: dict = {}  # name -> SharedMemory this process created and has not unlinked yet
+PREFIX = "ember_"
+SHM_DIR = "/dev/shm"  # where Linux keeps POSIX shared memory (elsewhere orphans are not looked for)
+_SWEPT = [False]  # remove_orphans ran in this process
 
 
 def create(size: int) -> shared_memory.SharedMemory:
     """A new segment this process owns: unlink() it, or unlink_all() on an abrupt exit."""
-    shm = shared_memory.SharedMemory(create=True, size=size)
+    if not _SWEPT[0]:
+        _SWEPT[0] = True
+        remove_orphans()
+    while True:
+        try:
+            shm = shared_memory.SharedMemory(create=True, size=size,
+                                             name=f"{PREFIX}{os.getpid()}_{secrets.token_hex(6)}")
+            break
+        except FileExistsError:  # pragma: no cover - 48 random bits
+            continue
     _OWNED[shm.name] = shm
     return shm
+
+
+def owner(name: str) -> int | None:
+    """The pid in a segment name this module made, else None."""
+    if not name.startswith(PREFIX):
+        return None
+    pid = name[len(PREFIX):].split("_", 1)[0]
+    return int(pid) if pid.isdigit() else None
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def remove_orphans(directory: str = SHM_DIR) -> list[str]:
+    """Unlink the segments of processes that no longer run (killed outright); their names."""
+    try:
+        names = os.listdir(directory)
+    except OSError:
+        return []
+    removed = []
+    for name in names:
+        pid = owner(name)
+        if pid is None or pid == os.getpid() or _alive(pid):
+            continue
+        try:
+            os.unlink(os.path.join(directory, name))
+            removed.append(name)
+        except OSError:  # gone meanwhile, or not ours to remove
+            pass
+    return removed
 
 
 def unlink(shm) -> None:

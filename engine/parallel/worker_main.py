@@ -3,12 +3,15 @@
 Loads the package by file path under a private name (the parent may know it as `ember` or
 as Blender's `bl_ext.<repo>.ember`) and serves batch requests on stdin/stdout.
 
-Workers ignore SIGINT from the start (a terminal's Ctrl-C reaches the whole process group;
-the render process alone decides how to stop) and, on Linux, are killed with their parent.
+Workers ignore SIGINT and SIGTERM from the start (a terminal's Ctrl-C, `timeout`, `docker
+stop` and farm managers signal the whole process group; the render process alone decides how
+to stop, and a worker dying first would be reported as a failure) and, on Linux, are killed
+with their parent.
 """
 import signal
 
-signal.signal(signal.SIGINT, signal.SIG_IGN)  # before any import: no KeyboardInterrupt tracebacks
+for _sig in (signal.SIGINT, signal.SIGTERM):  # before any import: no KeyboardInterrupt tracebacks
+    signal.signal(_sig, signal.SIG_IGN)
 
 import importlib.util  # noqa: E402
 import pathlib  # noqa: E402

@@ -29,8 +29,8 @@ render (`keep`) and taken by the next one (`pool_for`) with the same number of w
 workers then rebuild only what changed (engine/tracer.py). A cancelled or failed render
 kills its pool; one without persistent data closes it and any kept one.
 
-Workers ignore SIGINT: a terminal's Ctrl-C reaches the whole process group, and the render
-process alone decides how to stop (it kills the workers). A worker whose parent dies sees
+Workers ignore SIGINT and SIGTERM: a terminal's Ctrl-C or a farm's SIGTERM reaches the whole
+process group, and the render process alone decides how to stop (it kills the workers). A worker whose parent dies sees
 its stdin close and exits.
 """
 from __future__ import annotations
@@ -94,7 +94,8 @@ def read_message(stream):
 
 def serve(fin, fout) -> None:
     """The worker's loop (runs in the child process)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for sig in (signal.SIGINT, signal.SIGTERM):  # the render process decides (worker_main.py)
+        signal.signal(sig, signal.SIG_IGN)
     tracer, plain = None, {}
     epoch = None  # the pool's cancel counter (a one-element view of shared memory)
     held = {}  # scene part name -> the Attachment its arrays live in (big parts)
