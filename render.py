@@ -200,11 +200,21 @@ def build_parser(blend_required: bool) -> argparse.ArgumentParser:
     return p
 
 
+def _exists(path: pathlib.Path, what: str, kind: str = "file") -> bool:
+    """Whether `path` exists as a file (or "dir"); a directory on the way that may not be
+    searched is bad input (one line), not a PermissionError traceback."""
+    try:
+        return path.is_dir() if kind == "dir" else path.is_file()
+    except PermissionError:
+        raise UsageError(f"cannot open {what} {path}: permission denied (a directory on its path "
+                         "may not be searched)") from None
+
+
 def _check_blend(path: pathlib.Path) -> None:
-    if not path.exists():
+    if not _exists(path, ".blend"):
+        if path.exists():
+            raise UsageError(f"not a file: {path}")
         raise UsageError(f"file not found: {path}")
-    if not path.is_file():
-        raise UsageError(f"not a file: {path}")
     try:
         with open(path, "rb") as fh:
             head = fh.read(7)
@@ -219,21 +229,27 @@ def _check_output(path: pathlib.Path) -> str:
     if kind not in (".png", ".exr"):
         raise UsageError(f"output must end in .png or .exr, got {str(path)!r}")
     parent = path.parent if str(path.parent) else pathlib.Path(".")
-    if path.is_dir():
+    if _exists(path, "output", "dir"):
         raise UsageError(f"output path is a directory: {path}")
-    if not parent.is_dir():
+    if not _exists(parent, "output directory", "dir"):
         raise UsageError(f"output directory does not exist: {parent}")
+    _check_writable(path)
+    return kind
+
+
+def _check_writable(path: pathlib.Path) -> None:
+    """The image is written beside `path` under a longer temporary name and renamed into
+    place: the directory must take that file. Really try it (permission bits say little for
+    root or read-only file systems; the name may be too long only with the temporary's
+    additions)."""
     if path.exists() and not os.access(path, os.W_OK):
         raise UsageError(f"output path is not writable: {path}")
-    # The image is written beside it and renamed into place: the directory must take a new
-    # file. Really try: permission bits say little for root or read-only file systems.
+    _load_ember()
+    from ember.engine import imageio
     try:
-        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.probe-", dir=parent)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as e:
-        raise UsageError(f"output path is not writable: {path} ({e.strerror or e})")
-    return kind
+        imageio.check_writable(path)
+    except imageio.OutputError as e:
+        raise UsageError(str(e).replace("could not write", "cannot write", 1)) from None
 
 
 class _Follower:
@@ -677,7 +693,7 @@ def run(argv: list[str]) -> int:
     reference = None
     if args.reference is not None:
         ref_path = pathlib.Path(args.reference)
-        if not ref_path.is_file():
+        if not _exists(ref_path, "reference"):
             raise UsageError(f"reference not found: {ref_path}")
         if ref_path.suffix.lower() != ".exr":
             raise UsageError(f"reference must be a linear .exr, got {str(ref_path)!r}")
@@ -717,6 +733,7 @@ def run(argv: list[str]) -> int:
     frames = None
     if args.frames is not None:
         frames = parse_frames(args.frames, (scene.frame_start, scene.frame_end, scene.frame_step))
+        _check_writable(frame_path(output, max(frames, key=lambda f: len(str(f))), True))  # the longest name
         scene.render.use_persistent_data = True  # workers and Embree scenes stay from frame to frame
     if args.scheduler is not None:
         return _run_farm(args, argv, blend, output, kind, scene, frames, t_start)
@@ -1006,7 +1023,7 @@ def run_merge(argv: list[str]) -> int:
     parts = []
     for name in args.parts:
         path = pathlib.Path(name)
-        if not path.is_file():
+        if not _exists(path, "part"):
             raise UsageError(f"part not found: {path}")
         try:
             channels, header = imageio.read_exr(path)
@@ -1046,6 +1063,9 @@ def main() -> int:
     except EngineMissing as e:
         print(f"render.py: error: {e}", file=sys.stderr)
         return EXIT_FAILED
+    except PermissionError as e:  # an input the checks above did not open themselves
+        print(f"render.py: error: cannot read {e.filename or ''}: permission denied", file=sys.stderr)
+        return EXIT_USAGE
     except KeyboardInterrupt:
         if not STOP.requested:  # raised by Python itself (no handler yet)
             print("Interrupted.", file=sys.stderr)

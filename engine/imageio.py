@@ -24,6 +24,7 @@ deletes once its process is gone.
 from __future__ import annotations
 
 import errno
+import io
 import json
 import os
 import pathlib
@@ -35,7 +36,8 @@ from typing import Callable, Iterable
 import numpy as np
 
 __all__ = ["write_exr", "read_exr", "write_rgba_exr", "read_rgb", "OutputError", "write_atomically",
-           "check_png", "check_exr", "remove_stale_temporaries", "save_rgba_exr", "load_exr_binding"]
+           "check_png", "check_exr", "remove_stale_temporaries", "save_rgba_exr", "load_exr_binding",
+           "check_writable"]
 
 # Attributes that write_exr sets itself or the format derives from the pixels.
 _RESERVED = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder",
@@ -111,7 +113,23 @@ def write_exr(path: str | os.PathLike, channels: dict[str, np.ndarray],
             raise ValueError(f"write_exr: header attribute {key!r} is reserved")
         attrs[key] = _attribute(key, value)
     with exr.File(attrs, pixels) as f:
-        f.write(str(path))
+        if _utf8(path):
+            f.write(str(path))
+        else:  # the binding takes UTF-8 names only: the bytes go through Python's file
+            buffer = io.BytesIO()
+            f.write(buffer)
+            with open(path, "wb") as fh:
+                fh.write(buffer.getvalue())
+
+
+def _utf8(path) -> bool:
+    """Whether the path's name is valid UTF-8 (a byte that is not was decoded by the file
+    system encoding's surrogateescape, which OpenEXR's binding cannot encode)."""
+    try:
+        str(path).encode("utf-8")
+        return True
+    except UnicodeEncodeError:
+        return False
 
 
 def read_exr(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict]:
@@ -123,7 +141,11 @@ def read_exr(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], dict]:
     ints, floats, plus the format's own entries such as 'dataWindow').
     """
     exr = _openexr()
-    with exr.File(str(path), separate_channels=True) as f:
+    source = str(path)
+    if not _utf8(path):
+        with open(path, "rb") as fh:
+            source = io.BytesIO(fh.read())
+    with exr.File(source, separate_channels=True) as f:
         header = dict(f.header())
         channels = {name: np.array(ch.pixels, copy=True) for name, ch in f.channels().items()}
     return channels, header
@@ -191,12 +213,7 @@ def write_atomically(path: str | os.PathLike, write: Callable[[str], None],
     """
     path = pathlib.Path(path)
     directory = path.parent if str(path.parent) else pathlib.Path(".")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}{_TMP_TAG}{os.getpid()}-", suffix=path.suffix,
-                                   dir=directory)
-        os.close(fd)
-    except OSError as e:
-        raise OutputError(f"could not write {path}: {_reason(e)}") from e
+    tmp = _temporary(path)
     try:
         try:
             write(tmp)
@@ -223,6 +240,37 @@ def write_atomically(path: str | os.PathLike, write: Callable[[str], None],
         except OSError:
             pass
         raise
+
+
+def _temporary(path: pathlib.Path) -> str:
+    """A new empty temporary file for `path` in its directory (OutputError if none can be made)."""
+    directory = path.parent if str(path.parent) else pathlib.Path(".")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}{_TMP_TAG}{os.getpid()}-", suffix=path.suffix,
+                                   dir=directory)
+        os.close(fd)
+    except OSError as e:
+        if e.errno == errno.ENAMETOOLONG:
+            extra = len(os.fsencode(f".{_TMP_TAG}{os.getpid()}-xxxxxxxx{path.suffix}"))
+            most = _name_max(directory)
+            raise OutputError(f"could not write {path}: its name is {len(os.fsencode(path.name))} bytes, too long "
+                              f"for the temporary file written first, which adds {extra} to it (names of at "
+                              f"most {most} bytes here): use at most {most - extra}") from e
+        raise OutputError(f"could not write {path}: {_reason(e)}") from e
+    return tmp
+
+
+def _name_max(directory) -> int:
+    try:
+        return os.pathconf(directory, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        return 255
+
+
+def check_writable(path: str | os.PathLike) -> None:
+    """Raise OutputError unless write_atomically could create its temporary file for `path`
+    (a name too long for it, a directory without write permission): checked before rendering."""
+    os.unlink(_temporary(pathlib.Path(path)))
 
 
 def _disk_full(directory, margin: int = 1 << 16) -> bool:
