@@ -195,7 +195,11 @@ def build_parser(blend_required: bool) -> argparse.ArgumentParser:
     p.add_argument("--chunk-samples", type=_int_in(1, declared.INT_MAX),
                    help="with --scheduler: at most this many samples per task (frames split, then merged)")
     p.add_argument("--send-blend", action="store_true",
-                   help="with --scheduler: send the .blend's bytes to the workers (else they read its path)")
+                   help="with --scheduler: send the .blend's bytes, its external images packed into it, to "
+                        "the workers (else they read its path)")
+    p.add_argument("--missing-textures", choices=("warn", "error"),
+                   help="an image file the scene uses that is missing: a warning and magenta (as Cycles; the "
+                        "default) or an error (exit 2; the default of --scheduler's tasks)")
     add_setting_options(p, declared, declared.GROUPS)
     return p
 
@@ -645,6 +649,41 @@ def frame_path(path: pathlib.Path, frame: int, numbered: bool) -> pathlib.Path:
     return path.with_name(name)
 
 
+def missing_images() -> list[tuple[str, str]]:
+    """(name, absolute path) of the images some datablock uses whose file is not there (not
+    packed, not generated); a sequence or UDIM set counts as missing when its directory is."""
+    import bpy
+    out = []
+    for image in bpy.data.images:
+        if image.users == 0 or image.packed_file is not None or image.source not in ('FILE', 'SEQUENCE', 'TILED'):
+            continue
+        path = bpy.path.abspath(image.filepath, library=image.library)
+        there = os.path.isdir(os.path.dirname(path)) if image.source != 'FILE' else os.path.isfile(path)
+        if not there:
+            out.append((image.name, path))
+    return out
+
+
+def _missing_text(missing) -> str:
+    text = ", ".join(f"'{name}' ({path})" for name, path in missing[:3])
+    return text + (f" and {len(missing) - 3} more" if len(missing) > 3 else "")
+
+
+def _packed_blend_bytes() -> bytes:
+    """The loaded .blend with its external images packed into it, as bytes: what --send-blend
+    sends, so that textures on (relative) paths travel with the job. The file on disk is left
+    as it is (a copy is saved)."""
+    import bpy
+    for image in bpy.data.images:
+        if image.users and image.packed_file is None and image.source == 'FILE' and \
+                os.path.isfile(bpy.path.abspath(image.filepath, library=image.library)):
+            image.pack()
+    with tempfile.TemporaryDirectory(prefix="ember-send-") as tmp:
+        copy = pathlib.Path(tmp) / "scene.blend"
+        bpy.ops.wm.save_as_mainfile(filepath=str(copy), copy=True, check_existing=False)
+        return copy.read_bytes()
+
+
 def _load_writers() -> None:
     """Import what writing a frame imports (OpenEXR's binding, the passes table, the version's
     TOML reader) while a signal is only a flag."""
@@ -722,6 +761,10 @@ def run(argv: list[str]) -> int:
     scene = bpy.context.scene
     _require_ember(scene)
     _apply_settings(scene, args)
+    if args.missing_textures == "error" or (args.scheduler is not None and args.missing_textures is None):
+        missing = missing_images()
+        if missing:
+            raise UsageError(f"image file(s) missing: {_missing_text(missing)} (or allow them: --missing-textures warn)")
     if scene.camera is None:
         raise UsageError(f"the scene '{scene.name}' has no active camera: add one or set Scene > Camera")
     if kind == ".png":
@@ -802,7 +845,9 @@ def _run_farm(args, argv, blend, output, kind, scene, frames, t_start) -> int:
             options += ["--threads", str(max(available_cores() // n, 1))]
     elif not args.scheduler.startswith(("tcp://", "tls://")):
         raise UsageError(f"--scheduler expects tcp://HOST:PORT or local:N, got {args.scheduler!r}")
-    blend_bytes = blend.read_bytes() if args.send_blend else None
+    if args.missing_textures is None:  # a frame without its textures is no frame on a farm
+        options += ["--missing-textures", "error"]
+    blend_bytes = _packed_blend_bytes() if args.send_blend else None
     where = str(blend.resolve())
     print(f"Ember: {blend.name}: {len(tasks)} tasks ({len(frames)} frames) on {args.scheduler}", flush=True)
     expected = {f: sum(t.frame == f for t in tasks) for f in frames}
@@ -815,9 +860,15 @@ def _run_farm(args, argv, blend, output, kind, scene, frames, t_start) -> int:
         raise EngineMissing(str(e))
     t_farm = time.perf_counter()
 
+    warned = set()
+
     def on_task(done, total, task, result):
         print(f"Ember: task {done}/{total}: {task.describe()} done, {time.perf_counter() - t_farm:.1f} s",
               flush=True)
+        for line in result.get("warnings", ()):  # each once, as a local render shows it
+            if line not in warned:
+                warned.add(line)
+                print(f"{line} ({task.describe()})", flush=True)
 
     try:
         futures = farm.submit(client, tasks, str(HERE / "render.py"), None if args.send_blend else where,

@@ -65,7 +65,11 @@ def texels(image, warn=_quiet, owner: str = "", name: str | None = None) -> Texe
     """An image's pixels (its buffer as Blender holds it) as the texels Cycles keeps."""
     w, h = (int(v) for v in image.size)
     channels = int(image.channels)
-    if w == 0 or h == 0 or channels not in (1, 4):
+    if w == 0 or h == 0:
+        where = f" (file '{bpy.path.abspath(image.filepath, library=image.library)}')" if image.filepath else ""
+        warn(f"{owner}image '{image.name}' has no pixels{where}: missing or unreadable, magenta, as in Cycles")
+        return None
+    if channels not in (1, 4):
         return None
     buf = np.empty(w * h * channels, np.float32)
     image.pixels.foreach_get(buf)

@@ -56,7 +56,8 @@ def plan(frames, samples: int, offset: int = 0, chunk: int = 0) -> list[Task]:
 
 def render_task(task: dict, render_py: str, blend: str | None, blend_bytes: bytes | None,
                 options: list, python: str | None = None) -> dict:
-    """On a Dask worker: render one Task with render.py; {"exr": bytes, "line": summary}."""
+    """On a Dask worker: render one Task with render.py; {"exr": bytes, "line": summary,
+    "warnings": its Warning lines, for the caller to show}."""
     import ctypes
     import glob
     import os
@@ -95,7 +96,8 @@ def render_task(task: dict, render_py: str, blend: str | None, blend_bytes: byte
         with open(parts[0], "rb") as fh:
             data = fh.read()
     summary = [l for l in proc.stdout.splitlines() if l.startswith("Ember: ") and " -> " in l]
-    return {"exr": data, "line": summary[-1] if summary else ""}
+    warnings = list(dict.fromkeys(l for l in proc.stdout.splitlines() if l.startswith("Warning: ")))
+    return {"exr": data, "line": summary[-1] if summary else "", "warnings": warnings}
 
 
 render_task.__module__ = "__main__"  # Dask then pickles it by value (see the module docstring)
