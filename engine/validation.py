@@ -37,6 +37,9 @@ def settings_problems(s) -> list[str]:
         problems.append(f"render border {tuple(s.border)} is empty or outside the {s.width}x{s.height} frame "
                         "(enlarge the render region or disable it)")
     problems += sample_offset_problems(s)
+    if s.integrator == "icache" and s.icache_gather == "path" and s.gather_rays < 1:
+        problems.append("gather rays must be at least 1 for the irradiance cache's path-traced gathering "
+                        f"(got {s.gather_rays})")
     unknown = sorted(set(s.passes) - set(PASS_NAMES))
     if unknown:
         problems.append(f"unknown render pass(es) {', '.join(unknown)} (use some of {', '.join(PASS_NAMES)})")

@@ -18,6 +18,7 @@ from ember.engine.integrators import REGISTRY, auto, choices, honours, items
 from ember.engine.integrators.irradiance import cache
 from ember.engine.integrators.photon import photon_map
 from ember.engine.scene import SAMPLING_ONLY, Scene, Settings
+from ember.engine.errors import EmberError
 from ember.engine.validation import settings_problems
 
 from core_scenes import furnace_box
@@ -231,10 +232,11 @@ def test_every_declaration_has_its_generated_pieces(bpy):
             assert [i.identifier for i in p.enum_items] == [v.upper() for v in choices(s)]
         else:
             assert p.default == pytest.approx(s.blender_default), s.name
-        if s.kind in (int, float):
-            assert p.hard_min == pytest.approx(s.min), s.name
+        if s.kind in (int, float):  # the declared range is soft: Blender never clamps, Ember refuses
+            assert p.soft_min == pytest.approx(s.min if s.soft_min is None else s.soft_min), s.name
             if s.max is not None:
-                assert p.hard_max == pytest.approx(s.max), s.name
+                assert p.soft_max == pytest.approx(s.max if s.soft_max is None else s.soft_max), s.name
+            assert p.hard_min < (s.min if s.min is not None else 0) - 1, s.name
 
 
 @pytest.mark.blender
@@ -252,8 +254,9 @@ def test_a_new_declaration_is_enough(bpy):
                          flag="--mode")
     prop = bpy_property(knob)
     assert prop.function is bpy.props.FloatProperty
-    assert {k: prop.keywords[k] for k in ("name", "default", "min", "max", "subtype", "unit")} == dict(
-        name="Knob", default=0.5, min=0.25, max=2.0, subtype='DISTANCE', unit='LENGTH')
+    assert {k: prop.keywords[k] for k in ("name", "default", "soft_min", "soft_max", "subtype", "unit")} == dict(
+        name="Knob", default=0.5, soft_min=0.25, soft_max=2.0, subtype='DISTANCE', unit='LENGTH')
+    assert "min" not in prop.keywords and "max" not in prop.keywords  # refused by Ember, not clamped by Blender
     assert [i[0] for i in bpy_property(mode).keywords["items"]] == ["A", "B"]
     parser = argparse.ArgumentParser()
     render.add_setting_options(parser, declared, [declared.group("test", "Test", knob, mode)])
@@ -330,3 +333,26 @@ def test_panels_draw_the_declared_settings(scene):
         for g in declared.GROUPS:
             shown |= {d[0] for d in _draw(scene, g.name) + _draw(scene, g.name, subpanel="advanced")}
     assert {s.bpy_prop for s in DECLARED.values() if s.bpy_prop and s.ui is not None} <= shown
+
+
+@pytest.mark.blender
+def test_out_of_range_values_are_refused_never_clamped(scene):
+    """One rule for every declared setting: Blender keeps a value out of the declared range as
+    set (no hard limits to clamp it silently) and the render refuses it with one line naming
+    the setting, its limit and the value (the CLI's options give the same words)."""
+    from ember.engine.blender.export_settings import export_settings
+    cases = [(s, (s.max * 1.5 if s.max else s.max + 1) if s.max is not None else s.min - 1)
+             for s in DECLARED.values() if s.bpy_prop and s.kind in (int, float) and s.source == declared.EMBER
+             and (s.max is not None or s.min is not None)]
+    assert {"ppm_alpha", "icache_a", "icache_rays", "icache_radiance_order"} <= {s.name for s, _ in cases}
+    for s, value in cases:
+        value = s.kind(value)
+        setattr(scene.ember, s.bpy_prop, value)
+        assert getattr(scene.ember, s.bpy_prop) == pytest.approx(value), f"{s.name} was clamped"
+        try:
+            refusal = "; ".join(settings_problems(export_settings(scene)))
+        except EmberError as e:
+            refusal = str(e)
+        assert f"{s.name.replace('_', ' ')} {declared.problem(s, s.core(getattr(scene.ember, s.bpy_prop)))}" \
+            in refusal, s.name
+        setattr(scene.ember, s.bpy_prop, s.blender_default)

@@ -69,6 +69,7 @@ def draw_settings(layout, scene, group: str, subpanel: str = "", hide_unhonoured
             row = col.row(align=True)
         sub = row.row(align=True)
         sub.active = honoured and (not ui.active_if or holds(ui.active_if))
+        sub.alert = declared.problem(s, _value(scene, s.name)) is not None  # F12 refuses it (properties.py)
         text = next((t for condition, t in ui.texts if holds(condition)), s.label if ui.text is None else ui.text)
         sub.prop(*found, text=text, icon=ui.icon or 'NONE')
 

@@ -17,7 +17,13 @@ _UNITS = {"s": ('TIME_ABSOLUTE', 'TIME_ABSOLUTE'), "m": ('DISTANCE', 'LENGTH')}
 def bpy_property(s: declared.Setting):
     """The bpy property of a declared setting (enum identifiers upper case, as Blender's)."""
     kw = dict(name=s.label, description=s.description)
-    limits = dict(min=s.min, max=s.max, soft_min=s.soft_min, soft_max=s.soft_max)
+    # One rule for every setting, wherever its value comes from: a value out of its declared
+    # range is refused when the render starts (engine/validation.py, one line), never clamped.
+    # Blender clamps to a property's hard limits silently (a script, a typed value), so the
+    # declared range is the soft one (sliders and drags stay in it) and the panel shows an
+    # out-of-range value in red.
+    limits = dict(soft_min=s.min if s.soft_min is None else s.soft_min,
+                  soft_max=s.max if s.soft_max is None else s.soft_max)
     if s.kind is bool:
         return BoolProperty(default=s.blender_default, **kw)
     if s.kind is int:
