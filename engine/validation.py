@@ -104,12 +104,18 @@ def check_light_values(scene: Scene) -> None:
 
 
 # ---- memory -------------------------------------------------------------------------------
-# Bytes per film pixel: running sums and squares (2 x 24), count (8), the noise snapshot (12),
-# plus the transient (H, W, 4) images and float64 means made when the film is shown or
-# saved, and Blender's render result (set from the measured peak of a large render:
-# bench/results/full/code_choices.md).
-FILM_BYTES_PER_PIXEL = 220
-# Per path of a batch in a tracing process: ray, hit, throughput and shading state arrays
+# Bytes per film pixel in the render process: running sums and squares, count, the noise
+# snapshot, the layout's pixel indices, the transient (H, W, 4) images and float64 means made
+# when the film is shown or saved, and Blender's render result (measured:
+# bench/memory_per_pixel.py, bench/results/reliability/memory.md).
+FILM_BYTES_PER_PIXEL = 400
+# Per pixel and channel of each render pass (and a transparent film's alpha): its float64 sum,
+# the float32 image and its copy in the render result (measured as above).
+PASS_BYTES_PER_CHANNEL = 20
+# Per pixel in every tracing process: the layout's pixel indices (three int64 arrays) and the
+# coordinate grids they are made from.
+LAYOUT_BYTES_PER_PIXEL = 40
+# Per ray of a batch in a tracing process: ray, hit, throughput and shading state arrays
 # (float64 (N,3) each) and NumPy temporaries of one bounce.
 BATCH_BYTES_PER_PATH = 2000
 # Per path of a work item, live or not: its camera ray, radiance, random-number keys and pixel
@@ -119,39 +125,95 @@ ITEM_BYTES_PER_PATH = 160
 SCENE_BYTES_PER_TRIANGLE = 400
 PROCESS_BYTES = 150 << 20  # an interpreter with NumPy and Embree loaded
 GIB = float(1 << 30)
+CGROUP_ROOT = "/sys/fs/cgroup"
 
 
 def available_memory() -> int | None:
-    """MemAvailable of /proc/meminfo in bytes (None where there is no such file)."""
+    """Bytes this process may still allocate: MemAvailable of /proc/meminfo, or less where
+    a cgroup (a container, a farm's job slot) limits memory below it. None where neither is
+    known."""
+    avail = None
     try:
         with open("/proc/meminfo") as fh:
             for line in fh:
                 if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
+                    avail = int(line.split()[1]) * 1024
     except (OSError, ValueError, IndexError):
         pass
-    return None
+    limited = cgroup_available()
+    if limited is not None:
+        avail = limited if avail is None else min(avail, limited)
+    return avail
+
+
+def _read_int(path: str) -> int | None:
+    try:
+        with open(path) as fh:
+            text = fh.read().strip()
+    except OSError:
+        return None
+    return int(text) if text.isdigit() else None  # cgroup v2 writes "max" for no limit
+
+
+def cgroup_available(proc_cgroup: str = "/proc/self/cgroup", root: str = CGROUP_ROOT) -> int | None:
+    """Limit minus usage of the tightest memory cgroup on this process's path to the root:
+    v2 (memory.max, memory.current) or v1 (memory.limit_in_bytes, memory.usage_in_bytes); None
+    without a limit."""
+    try:
+        with open(proc_cgroup) as fh:
+            lines = fh.read().splitlines()
+    except OSError:
+        return None
+    places = []  # (directory holding the controller's files, limit file, usage file)
+    for line in lines:
+        _, controllers, path = (line.split(":", 2) + ["", ""])[:3]
+        if controllers == "":
+            places.append((root, path, "memory.max", "memory.current"))
+        elif "memory" in controllers.split(","):
+            places.append((os.path.join(root, "memory"), path, "memory.limit_in_bytes", "memory.usage_in_bytes"))
+    best = None
+    for base, path, limit_name, usage_name in places:
+        parts = [p for p in path.split("/") if p]
+        for depth in range(len(parts), -1, -1):  # a container sees its own cgroup as the root
+            directory = os.path.join(base, *parts[:depth])
+            limit = _read_int(os.path.join(directory, limit_name))
+            if limit is None or limit >= 1 << 60:  # v1's "no limit" is a huge number
+                continue
+            usage = _read_int(os.path.join(directory, usage_name)) or 0
+            left = max(limit - usage, 0)
+            best = left if best is None else min(best, left)
+    return best
+
+
+def film_channels(s) -> int:
+    """Channels the film keeps besides Combined: every pass a render accumulates, and alpha."""
+    from .passes import BY_NAME, needed
+    return sum(BY_NAME[n].channels for n in needed(s.passes)) + int(bool(s.film_transparent))
 
 
 def memory_estimate(scene: Scene, processes: int | None = None) -> dict:
-    """Peak memory (bytes) a render of `scene` needs, by part: film (render process),
-    batches, scene (each per tracing process) and the total. processes: tracing processes
-    (default: one per core, the most the session starts)."""
+    """Peak memory (bytes) a render of `scene` needs, by part: film (render process: pixels,
+    passes), batches (rays in flight: gather rays multiply them), scene (each per tracing
+    process), published (photon maps, irradiance records) and the total. processes: tracing
+    processes (default: one per core, the most the session starts)."""
     s = scene.settings
     if processes is None:
         processes = s.threads if getattr(s, "threads", 0) else (os.cpu_count() or 1)
     processes = max(int(processes), 1)
-    film = FILM_BYTES_PER_PIXEL * int(s.width) * int(s.height)
+    pixels = int(s.width) * int(s.height)
+    film = (FILM_BYTES_PER_PIXEL + PASS_BYTES_PER_CHANNEL * film_channels(s)) * pixels
     x0, y0, x1, y1 = s.border
     total = max(int(s.samples), 1) * max((x1 - x0) * (y1 - y0), 1)
-    paths, item = min(int(s.batch_size), total), min(ITEM_BATCHES * int(s.batch_size), total)
-    batches = BATCH_BYTES_PER_PATH * paths + ITEM_BYTES_PER_PATH * item  # (path tracer's items: the most)
+    integrator = REGISTRY.get(s.integrator)
+    rays = integrator.batch_rays(scene, total) if integrator is not None else min(int(s.batch_size), total)
+    item = min(ITEM_BATCHES * int(s.batch_size), total)
+    batches = BATCH_BYTES_PER_PATH * rays + ITEM_BYTES_PER_PATH * item  # (path tracer's items: the most)
     image = scene.world.image
     texels = scene.materials.image_texels
-    scene_bytes = (SCENE_BYTES_PER_TRIANGLE * scene.mesh.n_triangles
+    scene_bytes = (SCENE_BYTES_PER_TRIANGLE * scene.mesh.n_triangles + LAYOUT_BYTES_PER_PIXEL * pixels
                    + (4 * image.nbytes if image is not None else 0)  # the image and its tables
                    + (texels.nbytes if texels is not None else 0))
-    published = REGISTRY[s.integrator].memory_estimate(scene) if s.integrator in REGISTRY else 0
+    published = integrator.memory_estimate(scene) if integrator is not None else 0
     per_process = batches + scene_bytes + PROCESS_BYTES + published  # every worker maps the published data
     total = film + processes * per_process + published  # ... and the render process reduces it
     return dict(film=film, batches=batches, scene=scene_bytes, published=published, processes=processes,
@@ -171,10 +233,11 @@ def check_memory(scene: Scene, available: int | None = None) -> None:
     s = scene.settings
     raise EmberError(
         f"Not enough memory: a {s.width}x{s.height} render needs about {est['total'] / GIB:.1f} GiB "
-        f"(film {est['film'] / GIB:.1f} GiB, {est['processes']} process(es) x "
-        f"{(est['batches'] + est['scene'] + est['published'] + PROCESS_BYTES) / GIB:.2f} GiB for batches, scene "
-        f"and photon maps) but {available / GIB:.1f} GiB are available; lower the resolution, the batch size "
-        f"or the photon counts.")
+        f"(film and passes {est['film'] / GIB:.1f} GiB, {est['processes']} process(es) x "
+        f"{(est['batches'] + est['scene'] + est['published'] + PROCESS_BYTES) / GIB:.2f} GiB: rays in flight "
+        f"{est['batches'] / GIB:.2f}, scene {est['scene'] / GIB:.2f}, photon maps and records "
+        f"{est['published'] / GIB:.2f}) but {available / GIB:.1f} GiB are available; lower the resolution, the "
+        f"passes, the batch size, the gather rays or the photon counts.")
 
 
 def check_frame_memory(width: int, height: int, available: int | None = None) -> None:
@@ -183,7 +246,7 @@ def check_frame_memory(width: int, height: int, available: int | None = None) ->
     anything of its size exists."""
     if available is None:
         available = available_memory()
-    need = FILM_BYTES_PER_PIXEL * int(width) * int(height) + PROCESS_BYTES
+    need = FILM_BYTES_PER_PIXEL * int(width) * int(height) + PROCESS_BYTES  # no passes yet: the least
     if available is not None and need > available:
         raise EmberError(f"Not enough memory: a {width}x{height} render needs at least {need / GIB:.1f} GiB "
                          f"for its image but {available / GIB:.1f} GiB are available; lower the resolution.")

@@ -25,3 +25,7 @@ class AutoIntegrator(Integrator):
     @classmethod
     def memory_estimate(cls, scene) -> int:
         return max(c.memory_estimate(scene) for c in CANDIDATES.values())
+
+    @classmethod
+    def batch_rays(cls, scene, paths: int) -> int:
+        return max(c.batch_rays(scene, paths) for c in CANDIDATES.values())

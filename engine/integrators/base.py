@@ -103,6 +103,13 @@ class Integrator:
         """Bytes of published data (photon maps, ...) one process holds at the peak."""
         return 0
 
+    @classmethod
+    def batch_rays(cls, scene: Scene, paths: int) -> int:
+        """Rays one batch of a work item traces together at the most, in a render of `paths`
+        camera paths (engine/validation.py's memory estimate): a batch of paths, unless every
+        path spawns several rays."""
+        return min(int(scene.settings.batch_size), paths)
+
     def work_items(self) -> int:
         """About how many items the render has (worker processes pay off from a few)."""
         return self.layout.n_batches

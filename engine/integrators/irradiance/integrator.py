@@ -51,7 +51,7 @@ from ..base import Stage
 from ..path import PathTracer
 from ..path_options import Gather
 from ..path_state import PathState
-from ..photon.integrator import PhotonIntegrator, _accumulate, _sample_rows
+from ..photon.integrator import PHOTON_BYTES, PhotonIntegrator, _accumulate, _sample_rows
 from ..surface import towards
 from .cache import RecordOctree, Records, neighbour_clamp, spread_subset
 from .hemisphere import cell_directions, gradient_to_world, record_terms
@@ -66,6 +66,10 @@ MIN_WORLD, MAX_WORLD = 1e-4, 0.1
 MIN_COS = 0.2  # a footprint grows as 1 / cos(view angle); grazing views are capped at this cosine
 RECORD_RAYS = 1 << 16  # gather rays per work item of the records stage (cancel latency)
 MIN_RECORD_ITEMS = 4  # work items a records round is cut into at least (two per core)
+# Records per pixel of the frame the memory estimate allows for: above what the pixel-footprint
+# clamps let the cache place (bench/results/reliability/memory.md).
+RECORDS_PER_PIXEL = 0.125
+RECORD_FLOATS = 30  # float64 values of a record without radiance coefficients (cache.Records)
 MAX_ROUNDS = 12  # records rounds per placement; points still uncovered are final-gathered
 MAX_BLOCK = 16  # passes per pixels stage (records placed between blocks)
 # Refinement: before the passes [P, ...) every record holds at least 1 + P // PASSES_PER_LEVEL
@@ -93,10 +97,32 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
                    "final gathering, interpolated (biased, smooth)")
     sample_offset = False  # records placed in passes < K serve pass K: no sample range stands alone
 
+    @staticmethod
+    def batch_paths(s) -> int:
+        return max(1024, s.batch_size // 2)
+
+    @classmethod
+    def batch_rays(cls, scene, paths: int) -> int:
+        """Uncached points of a batch each trace gather_rays gather rays; a records item
+        traces RECORD_RAYS."""
+        return max(super().batch_rays(scene, paths), RECORD_RAYS)
+
+    @classmethod
+    def memory_estimate(cls, scene) -> int:
+        """The global map where gather rays read it, and the records: their fields and, with
+        radiance caching, order^2 coefficients per channel and their gradients, twice (the
+        render process's arrays and the published copy)."""
+        s = scene.settings
+        photons = super().memory_estimate(scene) if s.icache_gather == "photon" else \
+            2 * PHOTON_BYTES * (s.caustic_photons // 10)
+        coefficients = 4 * 3 * s.icache_radiance_order ** 2 if s.icache_radiance else 0
+        records = int(RECORDS_PER_PIXEL * s.width * s.height)
+        return photons + 2 * 8 * records * (RECORD_FLOATS + coefficients)
+
     def __init__(self, scene):
         super().__init__(scene)
         s = scene.settings
-        self.layout = BatchLayout(scene, max(1024, s.batch_size // 2))
+        self.layout = BatchLayout(scene, self.batch_paths(s))
         if s.icache_gather == "path":
             self.n_global_items = 0  # gather rays trace paths: no global map
         self.M = max(2, int(round(np.sqrt(s.icache_rays / 2.0))))

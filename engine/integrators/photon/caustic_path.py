@@ -46,6 +46,10 @@ class CausticPathIntegrator(PhotonIntegrator):
         self._counters["global"] = "no global map: path tracing beyond the first diffuse point"
 
     @classmethod
+    def batch_rays(cls, scene, paths: int) -> int:  # one continuation per camera path
+        return min(int(scene.settings.batch_size), paths)
+
+    @classmethod
     def memory_estimate(cls, scene) -> int:
         return 2 * PHOTON_BYTES * (scene.settings.caustic_photons // 10)
 

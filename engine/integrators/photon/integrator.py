@@ -74,7 +74,7 @@ class PhotonIntegrator(Integrator):
         s = scene.settings
         # Every camera path may spawn G gather rays: fewer paths per item keep an item's rays
         # (memory) and its duration (cancel latency) near the path tracer's.
-        self.layout = BatchLayout(scene, max(1024, s.batch_size // max(1, s.gather_rays)))
+        self.layout = BatchLayout(scene, self.batch_paths(s))
         v = scene.mesh.vertices
         self.center = (0.5 * (v.min(axis=0) + v.max(axis=0))).astype(np.float64) if len(v) else np.zeros(3)
         self.radius = bounding_radius(v)
@@ -99,6 +99,16 @@ class PhotonIntegrator(Integrator):
         published copy)."""
         s = scene.settings
         return 2 * PHOTON_BYTES * (3 * s.photons + s.caustic_photons // 10)
+
+    @staticmethod
+    def batch_paths(s) -> int:
+        """Camera paths per batch: every one may spawn gather_rays gather rays."""
+        return max(1024, s.batch_size // max(1, s.gather_rays))
+
+    @classmethod
+    def batch_rays(cls, scene, paths: int) -> int:
+        s = scene.settings
+        return min(cls.batch_paths(s), paths) * max(1, s.gather_rays)
 
     def work_items(self) -> int:
         return self.layout.n_batches + self.n_global_items + self.n_caustic_items

@@ -59,6 +59,10 @@ class ProgressivePhotonIntegrator(PhotonIntegrator):
 
     # --- render process -------------------------------------------------------------------
     @classmethod
+    def batch_rays(cls, scene, paths: int) -> int:  # one BSDF ray per camera path
+        return min(int(scene.settings.batch_size), paths)
+
+    @classmethod
     def memory_estimate(cls, scene) -> int:
         """One pass's map (no caustic map), as PhotonIntegrator.memory_estimate."""
         return 2 * PHOTON_BYTES * 3 * scene.settings.photons
