@@ -485,7 +485,8 @@ class _Converter:
         ecolor, etex = self.color(node, "Emission Color")
         if etex >= 0:
             self.note(f"texture on '{node.name}' Emission Color (used the input's own value)")
-        self.emission += w * ecolor * self.constant(node, "Emission Strength")
+        # A negative Principled Emission Strength emits nothing in Cycles (engine/nodes/shaders.py).
+        self.emission += w * ecolor * max(self.constant(node, "Emission Strength"), 0.0)
         if atex >= 0 and self.emission.max() > 0:
             self.note(f"'{node.name}' emission under a textured Alpha (emitted in full)")
         common = dict(roughness=rough, roughness_tex=rtex, distribution=dist, **opacity)

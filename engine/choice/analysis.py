@@ -259,7 +259,7 @@ def analyse(scene: Scene, pilot_rays: int = 4096, pilot_photons: int = 16384, se
     R = accel.scene_radius
     lights = LightSet(scene.lights, mesh, m, scene.world, accel, R, scene.settings.strategy)
     cls, per_class, kinds = _light_classes(scene, lights, R)
-    if lights.env is None and bool(lights.world.max() > 0):
+    if lights.env is None and bool(np.abs(lights.world).max() > 0):
         kinds.add("constant")
         per_class["constant"] = 1
     power = lights.power if lights.count else np.zeros(0)

@@ -148,7 +148,8 @@ class LightSet:
         self.kinds_present = sorted(set(lights.kind.tolist()))
         self.hittable = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind != LIGHT_SUN))
         self.suns = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind == LIGHT_SUN))
-        self.sees_escaped = bool(len(self.suns)) or bool(self.world.max() > 0) or self.env is not None or bg is not None
+        self.sees_escaped = (bool(len(self.suns)) or bool(np.abs(self.world).max() > 0) or self.env is not None
+                             or bg is not None)  # a negative world subtracts, as in Cycles
         # Ray visibility (Cycles' light and world visibility): None where everything sees all.
         tri_vis = mesh.visibility[self.tri_prim] if mesh.visibility is not None else np.full(len(self.tri_prim), RAY_ALL)
         vis = np.concatenate([lights.ray_visibility, tri_vis, [world.ray_visibility] if self.env is not None else []
@@ -430,7 +431,7 @@ class LightSet:
                 pdf_light = self.env_pmf * self.env.pdf(d)
                 w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
             total += np.where(seen[:, None], Le * w[:, None], 0.0)
-        elif self.world.max() > 0:
+        elif np.abs(self.world).max() > 0:
             total += np.where(seen[:, None], self.world, 0.0)
         return total
 

@@ -206,8 +206,10 @@ def principled(node, inputs, state):
     w = ONES
     out = _closure("transparent", w * column(1.0 - alpha), label + "/alpha", color=ONES)
     w = w * column(alpha)
-    emission = _closure("emission", w * triple(inputs["Emission Color"]) * column(inputs["Emission Strength"]),
-                        label + "/emission")
+    # Cycles renders no emission for a negative Principled Emission Strength (checked by
+    # rendering with bpy's Cycles), unlike the Emission node's, which emits negative light.
+    strength = np.maximum(np.asarray(inputs["Emission Strength"], np.float64), 0.0)
+    emission = _closure("emission", w * triple(inputs["Emission Color"]) * column(strength), label + "/emission")
     f0 = f0_from_ior(ior)
     rescaled = level != 0.5  # Specular IOR Level rescales F0 and the IOR with it
     f0 = np.where(rescaled, f0 * 2.0 * level, f0)
