@@ -4,6 +4,7 @@ feature naming the datablocks, and the cases it can render (a world without obje
 zero power, a 1x1 frame) render. Core checks run without bpy; the rest through render.py."""
 from __future__ import annotations
 
+import os
 import pathlib
 import subprocess
 import sys
@@ -235,6 +236,29 @@ me.update()
 sc.collection.objects.link(bpy.data.objects.new("broken", me)); save("nan_vertices")
 # motion blur on
 sc = base("motion_blur"); sc.render.use_motion_blur = True; save("motion_blur")
+# a transparent film with passes: its parts merge channel by channel
+sc = base("passes"); sc.render.film_transparent = True
+vl = sc.view_layers[0]
+vl.use_pass_z = vl.use_pass_normal = vl.use_pass_diffuse_direct = vl.use_pass_emit = True
+save("passes")
+# a negative Principled Emission Strength (Cycles emits nothing)
+sc = base("negative_emission")
+m = bpy.data.materials.new("Glow"); m.use_nodes = True
+p = m.node_tree.nodes["Principled BSDF"]
+p.inputs["Emission Strength"].default_value = -5.0; p.inputs["Emission Color"].default_value = (1, 1, 1, 1)
+sc.objects["plane"].data.materials.append(m); save("negative_emission")
+# an image texture on a path relative to the .blend
+import os
+os.makedirs(out + "/tex", exist_ok=True)
+img = bpy.data.images.new("checker", 4, 4)
+img.pixels = [float((i // 4 + i // 16) % 2) for i in range(64)]
+img.filepath_raw = out + "/tex/checker.png"; img.file_format = 'PNG'; img.save()
+sc = base("textured")
+m = bpy.data.materials.new("Tex"); m.use_nodes = True
+t = m.node_tree.nodes.new("ShaderNodeTexImage"); t.image = bpy.data.images.load(out + "/tex/checker.png")
+m.node_tree.links.new(t.outputs[0], m.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+sc.objects["plane"].data.materials.append(m)
+bpy.ops.wm.save_as_mainfile(filepath=out + "/textured.blend", relative_remap=True)
 '''
 
 
@@ -273,6 +297,7 @@ def _warnings(out):
     (["--resolution", "70000x10"], ["--resolution", "1..65536"]),
     (["--resolution", "1x65536"], ["--resolution", "1x65536"]),
     (["--resolution", "65536x65536"], ["not enough memory", "GiB"]),
+    (["--integrator", "photon", "--gather-rays", "2147483647"], ["not enough memory", "rays in flight", "gather rays"]),
 ])
 def test_out_of_range_options_exit_2_with_one_line(bad_scenes, args, words):
     from test_cli import _one_clear_line
@@ -412,11 +437,14 @@ def _after_export(proc, seconds=2.5):
 
 @pytest.mark.blender
 @pytest.mark.parametrize("sig, group, code, wait", [
-    ("SIGINT", True, 130, 2.5), ("SIGTERM", False, 143, 2.5), ("SIGTERM", False, 143, 0.2),
+    ("SIGINT", True, 130, 2.5), ("SIGTERM", False, 143, 0.2),
+    ("SIGTERM", True, 143, 2.5),  # timeout, docker stop, a farm manager: the whole process group
     ("SIGINT", True, 130, 0.2),  # workers ignore SIGINT before their first import
 ])
 def test_signal_during_sampling_stops_fast_one_line_no_file_no_workers(bad_scenes, sig, group, code, wait):
-    """wait 2.5: while sampling; wait 0.2: while the worker processes start."""
+    """wait 2.5: while sampling; wait 0.2: while the worker processes start. The workers
+    leave the stopping to the render process: none is reported as failed, and the engine's
+    destructor raises nothing on the way out."""
     import signal
     out_path = bad_scenes / "long.exr"
     proc = _start(bad_scenes, "world_only.blend", "-o", out_path, *LONG)
@@ -425,6 +453,7 @@ def test_signal_during_sampling_stops_fast_one_line_no_file_no_workers(bad_scene
     seconds, out, err = _signal_and_wait(proc, getattr(signal, sig), group)
     assert proc.returncode == code, err
     assert err.strip().splitlines() == ["Interrupted."], err  # no worker tracebacks either
+    assert "ended unexpectedly" not in out and "Error" not in out, out
     assert seconds < 5.0  # generous: a quiet machine stops within a second
     assert not out_path.exists()
     assert _wait_gone(workers), "worker processes outlived the render"
@@ -512,3 +541,180 @@ def test_sigkill_leaves_previous_file_and_no_workers(bad_scenes):
 def test_sigkill_orphaned_workers_exit_quietly(bad_scenes):
     err = _kill_while_sampling(bad_scenes)
     assert "Traceback" not in err, err
+
+
+@pytest.mark.blender
+def test_sigkill_to_the_group_leaves_segments_named_for_the_next_run(bad_scenes):
+    """SIGKILL to the process group (its resource tracker dies too): the shared-memory
+    segments left are named by their owner's pid, so the next process that creates one
+    removes them; no process outlives the render."""
+    import signal
+    from ember.engine.parallel import shared
+    proc = _start(bad_scenes, "world_only.blend", "-o", bad_scenes / "group_killed.exr", *LONG)
+    _after_export(proc, 1.0)
+    workers = _children(proc.pid)
+    assert workers
+    _signal_and_wait(proc, signal.SIGKILL, True)
+    assert _wait_gone(workers), "worker processes outlived the render"
+    left = sorted(n for n in os.listdir(shared.SHM_DIR) if shared.owner(n) == proc.pid)
+    assert left, "no segment named for its owner"
+    shared._SWEPT[0] = False
+    segment = shared.create(8)  # what the next run's worker pool does first
+    try:
+        assert not [n for n in os.listdir(shared.SHM_DIR) if shared.owner(n) == proc.pid]
+        assert segment.name in os.listdir(shared.SHM_DIR)  # a live owner's segment stays
+        assert not shared.remove_orphans()
+    finally:
+        shared.unlink(segment)
+
+
+WRITE_ENDS = """
+import json, os, signal, sys
+render_py, report = sys.argv[1], sys.argv[2]
+sys.argv = [render_py] + sys.argv[3:]
+source = open(render_py).read().replace('if __name__ == "__main__":', 'patch(globals())\\nif __name__ == "__main__":')
+
+def patch(g):
+    write = g["_Job"]._write
+    def _write(self, *args, **kwargs):
+        before = set(sys.modules)
+        result = write(self, *args, **kwargs)
+        json.dump(sorted(set(sys.modules) - before), open(report, "w"))
+        g["STOP"].soft = True  # the signal lands as the write's finally runs
+        os.kill(os.getpid(), signal.SIGINT)
+        return result
+    g["_Job"]._write = _write
+
+exec(compile(source, render_py, "exec"), {"__name__": "__main__", "__file__": render_py, "patch": patch})
+"""
+
+
+@pytest.mark.blender
+def test_ctrl_c_as_the_write_ends_exits_130_with_the_whole_file(bad_scenes):
+    """Ctrl-C as the output write ends: exit 130 and one line, the file complete, no summary
+    (never "Interrupted." and a success together); nothing is imported while a signal
+    interrupts the write (an interrupted import of OpenEXR's binding fails for good)."""
+    import json
+    from test_cli import RENDER
+    out_path, report = bad_scenes / "ends.exr", bad_scenes / "imported.json"
+    proc = _start(bad_scenes, RENDER, report, "world_only.blend", "-o", out_path, "--samples", "1",
+                  "--no-progress", script=WRITE_ENDS)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines() == ["Interrupted."], err
+    assert " -> " not in out, out
+    assert np.allclose(_exr(out_path)[..., :3], [0.2, 0.4, 0.6])
+    assert json.loads(report.read_text()) == []
+
+
+# ---- merges ----------------------------------------------------------------------------------
+def _header(samples=4, offset=0, border=(0, 0, 4, 2), **extra):
+    return {"ember/engine": "Ember", "ember/sceneDigest": "d", "ember/stoppedBy": "done",
+            "ember/border": str(list(border)), "ember/samples": samples, "ember/sampleOffset": offset,
+            "ember/seed": 0, "ember/sampleRange": f"[{offset}, {offset + samples})", **extra}
+
+
+def test_merge_keeps_alpha_and_every_pass_as_plain_means():
+    """Transparent parts: alpha merges like colour. Multilayer parts: every pass, weighted by
+    samples; Depth's miss value, Direct/Indirect divided by their Color and the variance of a
+    mean go through their plain means, so the merge equals the render of all the samples."""
+    from ember.engine.merge import MergeError, Part, merge, merge_channels
+    from ember.engine.passes import DEPTH_MISS
+    rng = np.random.default_rng(1)
+    n = (3, 5)  # samples of the two parts
+
+    def layer(alpha, depth, direct, color, var):
+        p = "ViewLayer."
+        ch = {f"{p}Combined.{c}": np.full((2, 4), v, np.float32) for c, v in zip("RGBA", (0.5, 0.25, 0.125, alpha))}
+        ch[f"{p}Depth.Z"] = depth.astype(np.float32)
+        for c in "RGB":
+            ch[f"{p}Diffuse Direct.{c}"] = np.divide(direct, color, out=np.zeros_like(direct),
+                                                     where=color > 0).astype(np.float32)
+            ch[f"{p}Diffuse Color.{c}"] = color.astype(np.float32)
+        ch[f"{p}Debug Variance.X"] = var.astype(np.float32)
+        return ch
+
+    d = [rng.uniform(1, 2, (2, 4)) for _ in n]
+    d[0][0, 0] = 0.0  # every sample of part 0 missed there
+    d[1][0, 0] = 0.0
+    d[1][1, 1] = 0.0  # part 1 missed, part 0 hit
+    direct = [rng.uniform(0, 1, (2, 4)) for _ in n]
+    color = [rng.uniform(0.2, 1, (2, 4)) for _ in n]
+    var = [rng.uniform(0, 1, (2, 4)) for _ in n]
+    alpha = (0.25, 0.75)
+    parts = [Part.from_exr(f"p{i}", layer(alpha[i], np.where(d[i] > 0, d[i], DEPTH_MISS), direct[i], color[i], var[i]),
+                           _header(n[i], sum(n[:i]))) for i in range(2)]
+    merged, header = merge_channels(parts)
+    w = np.array(n, float)[:, None, None] / sum(n)
+    depth = w[0] * d[0] + w[1] * d[1]
+    np.testing.assert_allclose(merged["ViewLayer.Combined.A"], (3 * 0.25 + 5 * 0.75) / 8, rtol=1e-6)
+    np.testing.assert_allclose(merged["ViewLayer.Depth.Z"], np.where(depth > 0, depth, DEPTH_MISS), rtol=1e-6)
+    mean_direct, mean_color = w[0] * direct[0] + w[1] * direct[1], w[0] * color[0] + w[1] * color[1]
+    np.testing.assert_allclose(merged["ViewLayer.Diffuse Direct.G"], mean_direct / mean_color, rtol=1e-5)
+    np.testing.assert_allclose(merged["ViewLayer.Debug Variance.X"], w[0] ** 2 * var[0] + w[1] ** 2 * var[1],
+                               rtol=1e-5)
+    assert header["ember/samples"] == 8 and header["ember/sampleRange"] == "[0, 8)"
+    rgba, _ = merge(parts)
+    assert rgba.shape == (2, 4, 4) and np.allclose(rgba[..., 3], (3 * 0.25 + 5 * 0.75) / 8)
+    plain = [Part.from_exr(f"q{i}", {c: np.full((2, 4), v, np.float32) for c, v in zip("RGBA", (1, 1, 1, alpha[i]))},
+                           _header(n[i], sum(n[:i]))) for i in range(2)]
+    assert np.allclose(merge(plain)[0][..., 3], (3 * 0.25 + 5 * 0.75) / 8)
+    with pytest.raises(MergeError, match="different channels or passes"):
+        merge_channels([parts[0], plain[1]])
+    lone = {k: v for k, v in layer(1, d[0], direct[0], color[0], var[0]).items() if "Diffuse Color" not in k}
+    with pytest.raises(MergeError, match="without Diffuse Color"):
+        Part.from_exr("lone", lone, _header())
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"ember/border": "[0, 0, x]"}, "malformed ember/border"),
+    ({"ember/border": "[0, 0, 9, 2]"}, "outside its 4x2 image"),
+    ({"ember/samples": None}, "no ember/samples"),
+    ({"ember/samples": "many"}, "malformed ember/samples"),
+    ({"ember/samples": -4}, "ember/samples -4: it must be at least 1"),
+    ({"ember/samples": 0}, "it must be at least 1"),
+    ({"ember/sampleOffset": "1.5"}, "malformed ember/sampleOffset"),
+    ({"ember/sampleOffset": -2}, "ember/sampleOffset -2"),
+    ({"ember/seed": "abc"}, "malformed ember/seed"),
+])
+def test_malformed_merge_metadata_is_one_line(change, words):
+    from ember.engine.merge import MergeError, Part
+    header = _header()
+    for k, v in change.items():
+        header.pop(k) if v is None else header.__setitem__(k, v)
+    with pytest.raises(MergeError, match=words) as e:
+        Part.from_exr("part.exr", {c: np.ones((2, 4), np.float32) for c in "RGBA"}, header)
+    assert "\n" not in str(e.value) and str(e.value).startswith("part.exr ")
+
+
+@pytest.mark.blender
+def test_transparent_multilayer_parts_merge_to_the_whole_render(bad_scenes):
+    """render.py merge and the farm's frame writer on real parts of a transparent film with
+    passes: every channel equals the render of all the samples to float32 rounding; a part
+    with malformed metadata is one line, exit 2."""
+    from ember.engine import imageio
+    from ember.engine.merge import Part, merge_channels
+    from test_cli import _one_clear_line, run
+    d = bad_scenes
+    for name, args in (("whole", ["--samples", "3"]), ("p0", ["--samples", "1"]),
+                       ("p1", ["--samples", "2", "--sample-offset", "1"])):
+        code, out, err = _cli(d, "passes.blend", "-o", f"{name}.exr", "--seed", "3", "--integrator", "path", *args)
+        assert code == 0, err
+    code, out, err = run(d, "merge", "p0.exr", "p1.exr", "-o", "merged.exr")
+    assert code == 0, err
+    whole, _ = imageio.read_exr(d / "whole.exr")
+    merged, header = imageio.read_exr(d / "merged.exr")
+    assert sorted(merged) == sorted(whole) and "ViewLayer.Combined.A" in whole and "ViewLayer.Depth.Z" in whole
+    assert whole["ViewLayer.Combined.A"].min() < 0.9  # transparent past the plane's edge
+    for c in whole:
+        np.testing.assert_allclose(merged[c], whole[c], rtol=4e-7, atol=1e-7, err_msg=c)
+    render_cli._write_farm_frame(d / "farm.exr", [(d / p).read_bytes() for p in ("p0.exr", "p1.exr")],
+                                 imageio, Part, merge_channels)
+    farm, _ = imageio.read_exr(d / "farm.exr")
+    assert all(np.array_equal(farm[c], merged[c]) for c in merged)
+    channels, header = imageio.read_exr(d / "p0.exr")
+    header = {k: v for k, v in header.items() if k.startswith("ember/")}
+    imageio.write_exr(d / "bad_part.exr", channels, {**header, "ember/seed": "abc"})
+    code, out, err = run(d, "merge", "bad_part.exr", "p1.exr", "-o", "bad_merge.exr")
+    assert code == 2
+    _one_clear_line(err, "bad_part.exr", "malformed ember/seed")
