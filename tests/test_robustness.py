@@ -718,3 +718,178 @@ def test_transparent_multilayer_parts_merge_to_the_whole_render(bad_scenes):
     code, out, err = run(d, "merge", "bad_part.exr", "p1.exr", "-o", "bad_merge.exr")
     assert code == 2
     _one_clear_line(err, "bad_part.exr", "malformed ember/seed")
+
+
+# ---- farm textures ---------------------------------------------------------------------------
+PACK = """
+import sys
+sys.argv = ["render.py"]
+sys.path.insert(0, {root!r})
+import bpy, render
+render._load_ember()
+bpy.ops.wm.open_mainfile(filepath={blend!r})
+open({out!r}, "wb").write(render._packed_blend_bytes())
+bpy.ops.wm.open_mainfile(filepath={out!r})  # elsewhere, without tex/ beside it
+image = bpy.data.images["checker.png"]
+print("packed", image.packed_file is not None, tuple(image.size))
+"""
+
+
+@pytest.mark.blender
+def test_farm_textures_travel_or_fail_and_task_warnings_return(bad_scenes, tmp_path):
+    """--send-blend sends the .blend with the images it uses packed into it, so a texture on
+    a relative path travels with the job. A task on a .blend whose texture is missing returns
+    the warning for the caller to show; with --missing-textures error (a farm's default) it
+    is one line, exit 2."""
+    from ember.engine import imageio
+    from ember.engine.parallel import farm
+    from test_cli import RENDER, _env, _one_clear_line
+    d = bad_scenes
+    sent = tmp_path / "sent" / "scene.blend"
+    sent.parent.mkdir()
+    proc = subprocess.run([sys.executable, "-c", PACK.format(root=str(RENDER.parent), blend=str(d / "textured.blend"),
+                                                            out=str(sent))], env=_env(d), capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "packed True (4, 4)" in proc.stdout
+    lone = tmp_path / "lone"
+    lone.mkdir()
+    (lone / "textured.blend").write_bytes((d / "textured.blend").read_bytes())  # its tex/ stays behind
+    result = farm.render_task(dict(frame=1, offset=0, samples=1), str(RENDER), str(lone / "textured.blend"), None,
+                              ["--threads", "1", "--integrator", "path"])
+    assert [w for w in result["warnings"] if "'checker.png' has no pixels" in w and "magenta" in w], result
+    (tmp_path / "task.exr").write_bytes(result["exr"])
+    rgb = imageio.read_rgb(tmp_path / "task.exr")
+    assert rgb[..., 1].sum() < 0.2 * rgb[..., 0].sum()  # magenta (and a white highlight), as Cycles renders it
+    code, out, err = _cli(lone, "textured.blend", "-o", "x.exr", "--missing-textures", "error")
+    assert code == 2
+    _one_clear_line(err, "image file(s) missing", "checker.png", "--missing-textures warn")
+
+
+# ---- paths ---------------------------------------------------------------------------------
+def _denied():
+    """A prefix that runs a command without the power to ignore file permissions (root
+    has it), or None where no such prefix is needed; skips where none can be had."""
+    if os.geteuid() != 0:
+        return []
+    import shutil
+    if shutil.which("setpriv") is None:
+        pytest.skip("root without setpriv: file permissions do not apply")
+    return ["setpriv", "--bounding-set", "-dac_override,-dac_read_search"]
+
+
+@pytest.mark.blender
+def test_unreadable_paths_are_one_line_exit_2(bad_scenes, tmp_path):
+    """A .blend, output, reference or merge part behind a directory that may not be searched,
+    or an output directory without write permission: one line, exit 2, before any render."""
+    from test_cli import RENDER, _env, _one_clear_line
+    d = bad_scenes
+    closed, readonly = tmp_path / "closed", tmp_path / "readonly"
+    closed.mkdir()
+    readonly.mkdir()
+    for name in ("world_only.blend",):
+        (closed / name).write_bytes((d / name).read_bytes())
+    (closed / "part.exr").write_bytes(b"x")
+    closed.chmod(0)
+    readonly.chmod(0o555)
+    try:
+        for args, words in (([closed / "world_only.blend", "-o", "x.exr"], [".blend", "permission denied"]),
+                            (["world_only.blend", "-o", closed / "x.exr"], ["output", "permission denied"]),
+                            (["world_only.blend", "-o", readonly / "x.exr"], ["cannot write", "permission denied"]),
+                            (["world_only.blend", "-o", "x.exr", "--reference", closed / "part.exr"],
+                             ["reference", "permission denied"]),
+                            (["merge", closed / "part.exr", "-o", "x.exr"], ["part", "permission denied"])):
+            proc = subprocess.run(_denied() + [sys.executable, str(RENDER), *map(str, args)], cwd=d, env=_env(d),
+                                  capture_output=True, text=True, timeout=120)
+            assert proc.returncode == 2, (args, proc.stderr)
+            _one_clear_line(proc.stderr, *words)
+    finally:
+        closed.chmod(0o755)
+        readonly.chmod(0o755)
+
+
+@pytest.mark.blender
+def test_output_names_are_checked_before_rendering(bad_scenes, tmp_path):
+    """Names that fit the file system but not the temporary file written first are refused
+    before rendering, for frame numbers too; a non-UTF-8 .exr name is written."""
+    from ember.engine import imageio
+    from test_cli import _one_clear_line
+    d = bad_scenes
+    for n in (232, 239):  # too long with any pid (OpenEXR's own check of the final name passes them)
+        code, out, err = _cli(d, "world_only.blend", "-o", tmp_path / ("a" * (n - 4) + ".exr"))
+        assert code == 2
+        _one_clear_line(err, f"{n} bytes", "too long", "temporary")
+    # A template whose temporary fits, but not with frame 10000's extra digits (pids as long as ours).
+    fits = 255 - len(f".{imageio._TMP_TAG}{os.getpid()}-xxxxxxxx") - 1
+    code, out, err = _cli(d, "world_only.blend", "-o", tmp_path / ("b" * (fits - 5) + "#.exr"), "--frames", "1,10000")
+    assert code == 2
+    _one_clear_line(err, "too long")
+    assert not [p for p in tmp_path.iterdir()]  # nothing rendered, nothing left
+    name = os.fsdecode(b"caf\xe9.exr")  # Latin-1, not UTF-8
+    from test_cli import RENDER, _env
+    proc = subprocess.run([sys.executable, str(RENDER), "world_only.blend", "-o", str(tmp_path / name), "--samples", "1",
+                           "--no-progress"], cwd=d, env=_env(d), capture_output=True, timeout=180)
+    assert proc.returncode == 0, proc.stderr
+    assert np.allclose(_exr(tmp_path / name)[..., :3], [0.2, 0.4, 0.6])
+    assert os.listdir(os.fsencode(tmp_path)) == [b"caf\xe9.exr"]
+
+
+# ---- memory ------------------------------------------------------------------------------------
+def test_memory_estimate_covers_gather_rays_records_photons_and_passes():
+    """Every setting that scales memory raises the estimate: gather rays multiply a batch's
+    rays, records (with radiance coefficients) and photons are published, passes add film."""
+    base = furnace_box(width=200, height=100)
+    est = lambda **kw: validation.memory_estimate(base.replace(settings=base.settings.replace(**kw)), 2)  # noqa: E731
+    path = est(integrator="path")
+    assert est(integrator="photon", gather_rays=64)["batches"] > 10 * est(integrator="photon", gather_rays=1)["batches"]
+    huge = est(integrator="photon", gather_rays=2**31 - 1)
+    assert huge["batches"] >= validation.BATCH_BYTES_PER_PATH * 1024 * (2**31 - 1)  # a batch of 1024 paths
+    with pytest.raises(EmberError, match="rays in flight .* gather rays"):
+        validation.check_memory(base.replace(settings=base.settings.replace(integrator="photon", gather_rays=2**31 - 1)),
+                                available=64 << 30)
+    assert est(integrator="photon", photons=10**7)["published"] > est(integrator="photon", photons=10**5)["published"]
+    icache = est(integrator="icache", icache_radiance=True, icache_radiance_order=8)["published"]
+    assert icache > 2 * est(integrator="icache")["published"] > 0
+    passes = est(integrator="path", passes=("Depth", "Normal"), film_transparent=True)
+    assert passes["film"] - path["film"] == validation.PASS_BYTES_PER_CHANNEL * 5 * 200 * 100
+
+
+@pytest.mark.parametrize("version", ["v1", "v2"])
+def test_available_memory_reads_the_cgroup_limit(tmp_path, version):
+    """A container's limit (cgroup v2 memory.max, v1 memory.limit_in_bytes) less its usage,
+    the tightest on the way to the root; 'max' and v1's huge number mean no limit."""
+    root = tmp_path / "cgroup"
+    if version == "v2":
+        (tmp_path / "self").write_text("0::/job/task\n")
+        limit, usage, base = "memory.max", "memory.current", root
+    else:
+        (tmp_path / "self").write_text("5:cpu:/x\n4:memory:/job/task\n")
+        limit, usage, base = "memory.limit_in_bytes", "memory.usage_in_bytes", root / "memory"
+    (base / "job" / "task").mkdir(parents=True)
+    (base / limit).write_text("max\n" if version == "v2" else "9223372036854771712\n")
+    (base / "job" / limit).write_text(f"{4 << 30}\n")
+    (base / "job" / usage).write_text(f"{1 << 30}\n")
+    (base / "job" / "task" / limit).write_text(f"{8 << 30}\n")
+    assert validation.cgroup_available(str(tmp_path / "self"), str(root)) == 3 << 30
+    (base / "job" / limit).write_text("max\n" if version == "v2" else "9223372036854771712\n")
+    assert validation.cgroup_available(str(tmp_path / "self"), str(root)) == 8 << 30
+    (tmp_path / "self").write_text("0::/\n" if version == "v2" else "4:memory:/\n")
+    assert validation.cgroup_available(str(tmp_path / "self"), str(root)) is None
+
+
+# ---- negative light ------------------------------------------------------------------------------
+def test_negative_world_is_seen_as_cycles_renders_it():
+    """A negative world strength: camera rays see the negative background (Cycles renders it
+    so; it was black)."""
+    session, stats, img = _render(_world_only(color=(-0.2, -0.4, -0.6), samples=2))
+    assert np.array_equal(img, np.broadcast_to([-0.2, -0.4, -0.6], img.shape))
+
+
+@pytest.mark.blender
+def test_negative_principled_emission_emits_nothing(bad_scenes):
+    """Cycles renders no emission for a negative Principled Emission Strength (it emitted
+    -5 here): the plane is lit by the lamp alone."""
+    code, out, err = _cli(bad_scenes, "negative_emission.blend", "-o", "negemit.exr", "--samples", "1", "--seed", "2")
+    assert code == 0, err
+    img = _exr(bad_scenes / "negemit.exr")
+    assert img[..., :3].min() >= 0 and img[..., :3].mean() > 0.01
