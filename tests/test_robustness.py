@@ -558,14 +558,32 @@ def test_sigkill_to_the_group_leaves_segments_named_for_the_next_run(bad_scenes)
     assert _wait_gone(workers), "worker processes outlived the render"
     left = sorted(n for n in os.listdir(shared.SHM_DIR) if shared.owner(n) == proc.pid)
     assert left, "no segment named for its owner"
-    shared._SWEPT[0] = False
-    segment = shared.create(8)  # what the next run's worker pool does first
+    alive = subprocess.Popen([sys.executable, "-c", OWNER, str(ROOT)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                             text=True)  # another render, still running
     try:
-        assert not [n for n in os.listdir(shared.SHM_DIR) if shared.owner(n) == proc.pid]
-        assert segment.name in os.listdir(shared.SHM_DIR)  # a live owner's segment stays
-        assert not shared.remove_orphans()
+        theirs = alive.stdout.readline().strip()
+        shared._SWEPT[0] = False
+        segment = shared.create(8)  # what the next run's worker pool does first
+        try:
+            assert not [n for n in os.listdir(shared.SHM_DIR) if shared.owner(n) == proc.pid]
+            assert {segment.name, theirs} <= set(os.listdir(shared.SHM_DIR))  # live owners' segments stay
+        finally:
+            shared.unlink(segment)
     finally:
-        shared.unlink(segment)
+        alive.communicate("")
+
+
+OWNER = """
+import sys
+sys.path.insert(0, sys.argv[1])
+from _bootstrap import load_ember
+load_ember()
+from ember.engine.parallel import shared
+segment = shared.create(8)
+print(segment.name, flush=True)
+sys.stdin.read()
+shared.unlink(segment)
+"""
 
 
 WRITE_ENDS = """
