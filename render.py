@@ -687,7 +687,9 @@ def _packed_blend_bytes() -> bytes:
 def _load_writers() -> None:
     """Import what writing a frame imports (OpenEXR's binding, the passes table, the version's
     TOML reader) while a signal is only a flag."""
-    from ember.engine import imageio, passes  # noqa: F401
+    import importlib
+    from ember.engine import imageio
+    importlib.import_module("ember.engine.passes")
     imageio.load_exr_binding()
     _version()
 

@@ -56,7 +56,8 @@ def load_exr_binding() -> None:
     """Import OpenEXR now: an import that a KeyboardInterrupt cuts short leaves the binding
     unusable in this process (its initialisation fails for good). Its writer imports
     `fractions` on first use."""
-    import fractions  # noqa: F401
+    import importlib
+    importlib.import_module("fractions")
     _openexr()
 
 

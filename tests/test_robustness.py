@@ -407,7 +407,6 @@ def _wait_gone(pids, timeout=5.0):
 
 
 def _start(d, *args, script=None):
-    import os
     from test_cli import RENDER, _env
     cmd = [sys.executable, str(RENDER)] if script is None else [sys.executable, "-c", script]
     return subprocess.Popen(cmd + [str(a) for a in args], cwd=d, env=_env(d), stdout=subprocess.PIPE,
