@@ -35,19 +35,21 @@ subsystem, README's settings table with their defaults and ranges.
 
 Merge: `render.py merge PART.exr ... --output OUT.exr` combines EXRs that render.py wrote of
 one frame - disjoint sample ranges (--sample-offset), tiles (--border) or both - weighting each
-pixel by the samples each part took there (read from the parts' metadata). The merge of any
+pixel by the samples each part took there (read from the parts' metadata), every channel:
+colour, alpha and, in multilayer files, every pass. The merge of any
 split equals the render of all the samples at once to float32 rounding. Parts of different
 scenes or settings (the metadata's scene digest), of different seeds, with overlapping sample
 ranges, cropped, or stopped early (time limit, noise target, Ctrl-C: unequal sample counts) are
-refused with one line (exit 2).
+refused with one line (exit 2), as are parts with malformed metadata.
 
 The .blend is only read: settings are changed on the loaded copy in memory and nothing
 is saved. The image is written to a hidden temporary file beside the output, checked, and
 renamed into place: a failed write (full disk, permission) exits 1 and leaves a previous
 file at that path untouched. Exit codes: 0 done, 1 render failed (also: the Ember engine could not be loaded or
 registered - render.py never renders with another engine), 2 bad input (file, option, scene),
-130 interrupted (Ctrl-C), 143 terminated (SIGTERM): one line, the render stops within about
-a second (a second signal stops at once) and no output file is written.
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM, also to the whole process group): one
+line, the render stops within about a second (a second signal stops at once) and the output
+is the previous file or, for a signal as the write ended, the complete new one.
 
 Design: the render goes through bpy.ops.render.render with the EMBER engine, the same
 path as F12 in Blender (engine/blender/final.py: export, progressive result writes,
