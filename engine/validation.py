@@ -156,9 +156,9 @@ def _read_int(path: str) -> int | None:
 
 
 def cgroup_available(proc_cgroup: str = "/proc/self/cgroup", root: str = CGROUP_ROOT) -> int | None:
-    """Limit minus usage of the tightest memory cgroup on this process's path to the root:
-    v2 (memory.max, memory.current) or v1 (memory.limit_in_bytes, memory.usage_in_bytes); None
-    without a limit."""
+    """Limit minus usage (less reclaimable page cache) of the tightest memory cgroup on this
+    process's path to the root: v2 (memory.max, memory.current) or v1 (memory.limit_in_bytes,
+    memory.usage_in_bytes); None without a limit."""
     try:
         with open(proc_cgroup) as fh:
             lines = fh.read().splitlines()
@@ -179,10 +179,24 @@ def cgroup_available(proc_cgroup: str = "/proc/self/cgroup", root: str = CGROUP_
             limit = _read_int(os.path.join(directory, limit_name))
             if limit is None or limit >= 1 << 60:  # v1's "no limit" is a huge number
                 continue
-            usage = _read_int(os.path.join(directory, usage_name)) or 0
-            left = max(limit - usage, 0)
+            usage = (_read_int(os.path.join(directory, usage_name)) or 0) - _inactive_file(directory)
+            left = max(limit - max(usage, 0), 0)
             best = left if best is None else min(best, left)
     return best
+
+
+def _inactive_file(directory: str) -> int:
+    """Page cache the kernel reclaims before it would kill (memory.stat's inactive_file, v1's
+    total_inactive_file): usage that is no working set, as `docker stats` counts it."""
+    try:
+        with open(os.path.join(directory, "memory.stat")) as fh:
+            for line in fh:
+                key, _, value = line.partition(" ")
+                if key in ("inactive_file", "total_inactive_file") and value.strip().isdigit():
+                    return int(value)
+    except OSError:
+        pass
+    return 0
 
 
 def film_channels(s) -> int:

@@ -888,6 +888,9 @@ def test_available_memory_reads_the_cgroup_limit(tmp_path, version):
     (base / "job" / usage).write_text(f"{1 << 30}\n")
     (base / "job" / "task" / limit).write_text(f"{8 << 30}\n")
     assert validation.cgroup_available(str(tmp_path / "self"), str(root)) == 3 << 30
+    inactive = "inactive_file" if version == "v2" else "total_inactive_file"
+    (base / "job" / "memory.stat").write_text(f"anon 5\n{inactive} {1 << 29}\n")  # page cache: reclaimable
+    assert validation.cgroup_available(str(tmp_path / "self"), str(root)) == (3 << 30) + (1 << 29)
     (base / "job" / limit).write_text("max\n" if version == "v2" else "9223372036854771712\n")
     assert validation.cgroup_available(str(tmp_path / "self"), str(root)) == 8 << 30
     (tmp_path / "self").write_text("0::/\n" if version == "v2" else "4:memory:/\n")
