@@ -32,7 +32,10 @@ LOBE_MICROFACET = 2  # GGX reflection, alpha = roughness^2; a perfect mirror whe
 LOBE_DIELECTRIC = 3  # GGX (or smooth) reflection + refraction with the exact Fresnel of ior
 LOBE_TRANSPARENT = 4  # straight pass-through (alpha, Transparent BSDF)
 LOBE_OREN_NAYAR = 5  # rough diffuse: Cycles' energy-preserving Oren-Nayar, sigma = roughness
-LOBE_KINDS = 6
+LOBE_TRANSLUCENT = 7  # Lambertian transmission: colour / pi on the far side
+LOBE_TOON = 8  # Cycles' Toon: size, smooth, the component in lobe_distribution (TOON_*)
+LOBE_KINDS = 9
+TOON_DIFFUSE, TOON_GLOSSY = 0, 1  # the Toon cone's axis: the normal, wo's mirror direction
 
 # Fresnel of LOBE_MICROFACET (Cycles' models).
 FRESNEL_NONE = 0  # F = colour (Glossy BSDF)
