@@ -469,7 +469,7 @@ class World:
 
 @dataclass(frozen=True)
 class Camera:
-    """Pinhole or orthographic camera.
+    """Pinhole, orthographic or panoramic camera.
 
     world_from_camera (4,4): camera looks down its -z axis, +y up, +x right.
     window (4,) = (left, right, bottom, top) of the image rectangle in camera space at
@@ -492,6 +492,14 @@ class Camera:
     blades: int = 0
     blade_rotation: float = 0.0
     aperture_ratio: float = 1.0
+    # Panoramic projection (engine/panorama.py): "" none, else one of its PANORAMAS, window then
+    # (0, 1, 0, 1) (the image's (u, v)); its parameters in Cycles' units (see engine/panorama.py).
+    panorama: str = ""
+    fisheye_fov: float = np.pi
+    fisheye_lens: float = 10.5
+    sensor: tuple = (36.0, 24.0)
+    pano_range: tuple = (-np.pi, np.pi, -0.5 * np.pi, 0.5 * np.pi)
+    polynomial: tuple = (0.0, -0.02, 0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)

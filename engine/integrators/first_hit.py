@@ -49,7 +49,7 @@ class FirstHit:
         found = hit.prim >= 0
         out = {}
         if self.alpha:
-            opaque = found
+            opaque = found | (tmax <= 0.0)  # outside a panorama's image: black and opaque (Cycles)
             if self.visibility is not None and self.visibility.holdout is not None:
                 opaque = found & ~self.visibility.holdout[np.maximum(hit.prim, 0)]
             out["alpha"] = opaque.astype(np.float64)[:, None]
