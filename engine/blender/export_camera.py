@@ -93,6 +93,15 @@ def export_camera(depsgraph, scene, settings, warn) -> Camera:
                   clip_end=clip_end, **lens_settings(cam_ob, world_from_camera))
 
 
+def fitted_sensor(cam, aspect_x: float, aspect_y: float) -> tuple:
+    """(width, height) mm of the camera's sensor fitted to an image of aspect_x : aspect_y as
+    Cycles' sync fits a panorama's: the fitted side the sensor's size, the other by the aspect."""
+    fit = cam.sensor_fit
+    horizontal = aspect_x >= aspect_y if fit == "AUTO" else fit == "HORIZONTAL"
+    size = float(cam.sensor_height if fit == "VERTICAL" else cam.sensor_width)
+    return (size, size * aspect_y / aspect_x) if horizontal else (size * aspect_x / aspect_y, size)
+
+
 def _panoramic(cam_ob, scene, settings, warn) -> Camera:
     """A panoramic camera as Cycles' Blender sync sets it up (engine/panorama.py): the window
     is the image's (u, v) square; a fisheye of sensor and lens has its sensor fitted to the
@@ -107,11 +116,7 @@ def _panoramic(cam_ob, scene, settings, warn) -> Camera:
         warn(f"Camera '{cam_ob.name}': lens shift is ignored on panoramic cameras.")
     if render.use_motion_blur:
         warn("Motion blur is not supported yet: the image is rendered without it.")
-    aspect_x, aspect_y = settings.width * render.pixel_aspect_x, settings.height * render.pixel_aspect_y
-    fit = cam.sensor_fit
-    horizontal = aspect_x >= aspect_y if fit == "AUTO" else fit == "HORIZONTAL"
-    size = cam.sensor_height if fit == "VERTICAL" else cam.sensor_width
-    sensor = (size, size * aspect_y / aspect_x) if horizontal else (size * aspect_x / aspect_y, size)
+    sensor = fitted_sensor(cam, settings.width * render.pixel_aspect_x, settings.height * render.pixel_aspect_y)
     if kind == "EQUIRECTANGULAR":
         pano_range = (cam.longitude_min, cam.longitude_max, cam.latitude_min, cam.latitude_max)
     elif kind == "CENTRAL_CYLINDRICAL":
