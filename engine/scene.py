@@ -155,6 +155,8 @@ class Materials:
 
     Materials: kind (M,) MAT_*; base_color (M,3) representative albedo (viewport, messages);
     emission (M,3) emitted radiance W/(m^2 sr) (colour x strength, as Cycles), two-sided;
+    holdout (M,) the mean over RGB of its Holdout closures' weight (Cycles' holdout: camera
+    rays' alpha loses it there);
     normal_tex (M,) texture slot of a tangent-space normal map (-1 none) and
     normal_strength (M,); names.
 
@@ -222,8 +224,11 @@ class Materials:
     image_srgb: np.ndarray = None
     image_names: tuple = ()
     graphs: tuple = ()
+    holdout: np.ndarray = None
 
     def __post_init__(self):
+        if self.holdout is None:
+            object.__setattr__(self, "holdout", np.zeros(len(self.kind)))
         # Tables built without lobes (kind + base_color only) get them from their kind.
         if self.lobe_kind is None:
             rows = [dict(kind=int(k), base_color=c) for k, c in zip(self.kind, self.base_color)]
@@ -303,6 +308,7 @@ class Materials:
             image_srgb=np.array([bool(im.get("srgb", False)) for im in images], bool),
             image_names=tuple(im.get("name", f"image{i}") for i, im in enumerate(images)),
             graphs=tuple(r.get("graph") for r in rows) if any(r.get("graph") is not None for r in rows) else (),
+            holdout=np.array([r.get("holdout", 0.0) for r in rows], np.float64),
         )
         mats.check()
         return mats

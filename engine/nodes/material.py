@@ -112,6 +112,7 @@ class MaterialProgram:
     normal: bool
     notes: tuple = field(default_factory=tuple)
     emission_mean: np.ndarray = field(default_factory=lambda: np.zeros(3))  # over PROBES points
+    holdout: float = 0.0  # mean over RGB of the Holdout closures' weight (over PROBES points where it varies)
     displacement: Program | None = None  # the bump normal of the Material Output's displacement
 
     @property
@@ -202,6 +203,16 @@ def compile_material(graph: Graph) -> MaterialProgram:
                                         if w not in program.warnings)
     mp = MaterialProgram(program, tuple(bsdfs), lobes, varying, emission, normal, warnings,
                          displacement=displacement)
+    holdouts = [c.weight for c in made if c.kind == "holdout"]
+    if holdouts:
+        if any(_varies(w, True) for w in holdouts):
+            state = probe_state(PROBES)
+            made_at = closures(program.run(state)["surface"])
+            mp.holdout = float(np.mean(sum(np.broadcast_to(c.weight, (PROBES, 3)) for c in made_at
+                                           if c.kind == "holdout")))
+            mp.notes = mp.notes + ("a Holdout weight that varies over the surface (its mean)",)
+        else:
+            mp.holdout = float(np.mean(sum(np.asarray(w, np.float64) for w in holdouts)))
     if emission is not None:
         mp.emission_mean = emission
     else:  # the largest mean any kind of ray sees: a surface black to camera rays still lights

@@ -164,9 +164,10 @@ def transparent(node, inputs, state):
     return {"BSDF": _closure("transparent", ONES, node.label, color=triple(inputs["Color"]))}
 
 
-@node("ShaderNodeHoldout", "Shader", notes=lambda node: ["Holdout rendered black"])
+@node("ShaderNodeHoldout", "Shader")
 def holdout(node, inputs, state):
-    return {"Holdout": ()}
+    """No light (its share renders black) and a hole in the alpha of camera rays (Materials.holdout)."""
+    return {"Holdout": (Closure("holdout", ONES, {}, node.label),)}
 
 
 _PRINCIPLED_IGNORED = (("coat", "Coat Weight", 0.0), ("sheen", "Sheen Weight", 0.0),
