@@ -45,36 +45,6 @@ def test_a_mixed_holdout_takes_its_weight_from_the_alpha_and_the_light():
 
 # ---- against Cycles -------------------------------------------------------------------------------
 
-def _rgba_cycles(sc, samples, seed, path):
-    import bpy
-    sc.render.engine = "CYCLES"
-    sc.cycles.samples, sc.cycles.seed = samples, seed
-    sc.render.filepath = str(path)
-    sc.render.image_settings.file_format = "OPEN_EXR"
-    sc.render.image_settings.color_mode = "RGBA"
-    bpy.ops.render.render(write_still=True)
-    img = bpy.data.images.load(str(path))
-    h, w = sc.render.resolution_y, sc.render.resolution_x
-    out = np.array(img.pixels[:]).reshape(h, w, 4)[::-1]
-    bpy.data.images.remove(img)
-    return out
-
-
-def _rgba_ember(sc, samples, seed):
-    import bpy
-    from ember.engine.blender import final
-    from cycles_renders import _Film
-    sc.render.engine = "EMBER"
-    sc.ember.integrator, sc.ember.samples, sc.ember.seed = "PATH", samples, seed
-    grab = _Film()
-    final.listeners.append(grab)
-    try:
-        bpy.ops.render.render()
-    finally:
-        final.listeners.remove(grab)
-    return grab.film.image().reshape(sc.render.resolution_y, sc.render.resolution_x, 4)
-
-
 def holdout_scene(transparent: bool):
     """A floor, a sphere of Mix(Holdout, Diffuse) and a Holdout cube under an area light and a
     grey world."""
@@ -104,11 +74,11 @@ def holdout_scene(transparent: bool):
 @pytest.mark.parametrize("transparent", [False, True])
 def test_holdout_colour_and_alpha_as_cycles(transparent, tmp_path):
     from cycles_renders import agree
-    from cycles_scenes import addon
+    from cycles_scenes import addon, rgba_cycles, rgba_ember
     with addon():
         sc = holdout_scene(transparent)
-        cycles = [_rgba_cycles(sc, 128, 100 + k, tmp_path / f"c{k}.exr") for k in range(4)]
-        ember = [_rgba_ember(sc, 48, k) for k in range(4)]
+        cycles = [rgba_cycles(sc, 128, 100 + k, tmp_path / f"c{k}.exr") for k in range(4)]
+        ember = [rgba_ember(sc, 48, k) for k in range(4)]
     agree([e[..., :3] for e in ember], [c[..., :3] for c in cycles], 4, 0.01)
     agree([e[..., 3:] for e in ember], [c[..., 3:] for c in cycles], 4, 0.01)
     holes = np.mean(cycles, axis=0)[..., 3] < 0.99

@@ -131,8 +131,8 @@ SIZE, SEEDS, EMBER_SAMPLES, CYCLES_SAMPLES, TOL = 32, 4, 64, 256, 0.01
 
 
 def leaf_scene():
-    """A Translucent leaf (a plane) lit from behind by an area light, seen from the front, over a
-    dim world; a diffuse floor behind the light catches what the leaf transmits back."""
+    """A Translucent leaf (a plane) lit from behind by an area light facing it, seen from the
+    front over a dim world."""
     import bpy
     from cycles_scenes import camera, new_scene, node_material
     sc = new_scene(SIZE, world=(0.02, 0.02, 0.02))
@@ -142,19 +142,22 @@ def leaf_scene():
     t.inputs["Color"].default_value = (0.3, 0.8, 0.2, 1)
     nt.links.new(t.outputs[0], out.inputs["Surface"])
     bpy.context.active_object.data.materials.append(mat)
-    bpy.ops.object.light_add(type="AREA", location=(0.4, 0.2, 0.3))
-    bpy.context.active_object.data.energy, bpy.context.active_object.data.size = 60, 0.8
-    camera(sc, (0.0, -1.5, 3.2), (0.45, 0, 0))
+    bpy.ops.object.light_add(type="AREA", location=(0.4, 0.2, 0.3), rotation=(np.pi, 0, 0))  # facing up
+    bpy.context.active_object.data.energy, bpy.context.active_object.data.size = 30, 0.8
+    camera(sc, (0.0, -2.5, 4.5), (0.5, 0, 0))
     return sc
 
 
-def toon_scene():
-    """A Diffuse Toon and a Glossy Toon sphere on a grey floor under a sun and a dim world."""
+def toon_scene(components=("DIFFUSE", "GLOSSY")):
+    """A Diffuse Toon and a Glossy Toon sphere (those of `components`) on a grey floor under a
+    sun and a dim world."""
     import bpy
     from cycles_scenes import camera, diffuse_floor, new_scene, node_material
     sc = new_scene(SIZE, world=(0.1, 0.1, 0.12))
     diffuse_floor()
     for x, component, size, smooth in ((-1.1, "DIFFUSE", 0.5, 0.1), (1.1, "GLOSSY", 0.3, 0.2)):
+        if component not in components:
+            continue
         bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, location=(x, 0, 1), segments=48, ring_count=24)
         bpy.ops.object.shade_smooth()
         mat, nt, out = node_material(component)
