@@ -131,10 +131,10 @@ SIZE, SEEDS, EMBER_SAMPLES, CYCLES_SAMPLES, TOL = 32, 4, 64, 256, 0.01
 
 
 def leaf_scene():
-    """A Translucent leaf (a plane) lit from behind by an area light facing it, seen from the
-    front over a dim world."""
+    """A Translucent leaf (a plane) lit from behind by a sun, seen from the front over a dim
+    world; a small diffuse card under it shadows part of it and is lit through it."""
     import bpy
-    from cycles_scenes import camera, new_scene, node_material
+    from cycles_scenes import camera, diffuse_floor, new_scene, node_material
     sc = new_scene(SIZE, world=(0.02, 0.02, 0.02))
     bpy.ops.mesh.primitive_plane_add(size=2.0, location=(0, 0, 1))
     mat, nt, out = node_material("Leaf")
@@ -142,8 +142,10 @@ def leaf_scene():
     t.inputs["Color"].default_value = (0.3, 0.8, 0.2, 1)
     nt.links.new(t.outputs[0], out.inputs["Surface"])
     bpy.context.active_object.data.materials.append(mat)
-    bpy.ops.object.light_add(type="AREA", location=(0.4, 0.2, 0.3), rotation=(np.pi, 0, 0))  # facing up
-    bpy.context.active_object.data.energy, bpy.context.active_object.data.size = 30, 0.8
+    bpy.ops.object.light_add(type="SUN", rotation=(np.pi - 0.4, 0.2, 0))  # from below
+    bpy.context.active_object.data.energy = 4.0
+    diffuse_floor(size=1.0)  # under the leaf, lit through it, shading part of it
+    bpy.context.active_object.location = (0.5, 0.3, 0.4)
     camera(sc, (0.0, -2.5, 4.5), (0.5, 0, 0))
     return sc
 
