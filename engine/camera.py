@@ -4,6 +4,9 @@ Pixel (x, y) counts from the top-left; the image rectangle `Camera.window` maps 
 edges 0..W, 0..H to left..right, top..bottom. Clipping is planar along the view axis
 (Cycles' camera: near/far clip divided by the ray's cosine to the view axis).
 
+Panoramic cameras (engine/panorama.py) map the pixel's point in [0, 1]^2 to a direction
+and clip along the ray (Cycles' camera_sample_panorama).
+
 Depth of field follows Cycles' thin lens (kernel/camera/camera.h): a point on the aperture
 (a disk, or a regular polygon of `blades` corners, x divided by the anamorphic ratio) times
 the aperture radius; the ray leaves it toward the point where the pinhole ray meets the
@@ -14,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import sampling
+from . import panorama, sampling
 from .scene import Camera, Settings
 from .vec import normalize, scale
 
@@ -63,6 +66,8 @@ def generate_rays(camera: Camera, settings: Settings, px: np.ndarray, py: np.nda
     m = np.asarray(camera.world_from_camera, np.float64)
     rot, eye = m[:3, :3], m[:3, 3]
     n = len(px)
+    if camera.panorama:
+        return _panorama_rays(camera, x, y, u_lens, rot, eye)
     if camera.ortho:
         d_cam = np.broadcast_to([0.0, 0.0, -1.0], (n, 3))
         o_cam = np.stack([x, y, np.full(n, -camera.clip_start)], axis=1)
@@ -88,4 +93,23 @@ def generate_rays(camera: Camera, settings: Settings, px: np.ndarray, py: np.nda
     o = o_cam @ rot.T + eye
     d = normalize(d_cam @ rot.T)  # rot may carry the object's scale
     tmax = (camera.clip_end - camera.clip_start) / cos_axis
+    return o, d, tmax
+
+
+def _panorama_rays(camera: Camera, u, v, u_lens, rot, eye):
+    """Cycles' camera_sample_panorama: the projection's direction of image point (u, v) (N,),
+    depth of field about it, the origin moved to the near clip along the ray and the far clip
+    at clip_end - clip_start along it. A point without a direction (outside a fisheye's
+    circle) gets a ray of length 0 along the view axis: it finds nothing and its path carries
+    nothing (tmax 0 marks it)."""
+    d = panorama.to_direction(camera, u, v)
+    valid = np.any(d != 0.0, axis=1)
+    o = np.zeros_like(d)
+    if u_lens is not None and camera.aperture_radius > 0 and valid.any():
+        o[valid], d[valid] = panorama.defocus(camera, d[valid], sample_aperture(camera, u_lens[valid]))
+    turn = panorama.panorama_to_camera(camera.panorama)
+    d[~valid] = turn.T @ np.array([0.0, 0.0, -1.0])
+    d = normalize((d @ turn.T) @ rot.T)
+    o = (o @ turn.T) @ rot.T + eye + d * camera.clip_start
+    tmax = np.where(valid, camera.clip_end - camera.clip_start, 0.0)
     return o, d, tmax

@@ -32,7 +32,10 @@ LOBE_MICROFACET = 2  # GGX reflection, alpha = roughness^2; a perfect mirror whe
 LOBE_DIELECTRIC = 3  # GGX (or smooth) reflection + refraction with the exact Fresnel of ior
 LOBE_TRANSPARENT = 4  # straight pass-through (alpha, Transparent BSDF)
 LOBE_OREN_NAYAR = 5  # rough diffuse: Cycles' energy-preserving Oren-Nayar, sigma = roughness
-LOBE_KINDS = 6
+LOBE_TRANSLUCENT = 7  # Lambertian transmission: colour / pi on the far side
+LOBE_TOON = 8  # Cycles' Toon: size, smooth, the component in lobe_distribution (TOON_*)
+LOBE_KINDS = 9
+TOON_DIFFUSE, TOON_GLOSSY = 0, 1  # the Toon cone's axis: the normal, wo's mirror direction
 
 # Fresnel of LOBE_MICROFACET (Cycles' models).
 FRESNEL_NONE = 0  # F = colour (Glossy BSDF)
@@ -152,6 +155,8 @@ class Materials:
 
     Materials: kind (M,) MAT_*; base_color (M,3) representative albedo (viewport, messages);
     emission (M,3) emitted radiance W/(m^2 sr) (colour x strength, as Cycles), two-sided;
+    holdout (M,) the mean over RGB of its Holdout closures' weight (Cycles' holdout: camera
+    rays' alpha loses it there);
     normal_tex (M,) texture slot of a tangent-space normal map (-1 none) and
     normal_strength (M,); names.
 
@@ -219,8 +224,11 @@ class Materials:
     image_srgb: np.ndarray = None
     image_names: tuple = ()
     graphs: tuple = ()
+    holdout: np.ndarray = None
 
     def __post_init__(self):
+        if self.holdout is None:
+            object.__setattr__(self, "holdout", np.zeros(len(self.kind)))
         # Tables built without lobes (kind + base_color only) get them from their kind.
         if self.lobe_kind is None:
             rows = [dict(kind=int(k), base_color=c) for k, c in zip(self.kind, self.base_color)]
@@ -300,6 +308,7 @@ class Materials:
             image_srgb=np.array([bool(im.get("srgb", False)) for im in images], bool),
             image_names=tuple(im.get("name", f"image{i}") for i, im in enumerate(images)),
             graphs=tuple(r.get("graph") for r in rows) if any(r.get("graph") is not None for r in rows) else (),
+            holdout=np.array([r.get("holdout", 0.0) for r in rows], np.float64),
         )
         mats.check()
         return mats
@@ -466,7 +475,7 @@ class World:
 
 @dataclass(frozen=True)
 class Camera:
-    """Pinhole or orthographic camera.
+    """Pinhole, orthographic or panoramic camera.
 
     world_from_camera (4,4): camera looks down its -z axis, +y up, +x right.
     window (4,) = (left, right, bottom, top) of the image rectangle in camera space at
@@ -489,6 +498,14 @@ class Camera:
     blades: int = 0
     blade_rotation: float = 0.0
     aperture_ratio: float = 1.0
+    # Panoramic projection (engine/panorama.py): "" none, else one of its PANORAMAS, window then
+    # (0, 1, 0, 1) (the image's (u, v)); its parameters in Cycles' units (see engine/panorama.py).
+    panorama: str = ""
+    fisheye_fov: float = np.pi
+    fisheye_lens: float = 10.5
+    sensor: tuple = (36.0, 24.0)
+    pano_range: tuple = (-np.pi, np.pi, -0.5 * np.pi, 0.5 * np.pi)
+    polynomial: tuple = (0.0, -0.02, 0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)

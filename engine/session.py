@@ -28,6 +28,7 @@ import numpy as np
 from . import choice, integrators
 from .film import Film
 from .integrators.base import Stage
+from .integrators.first_hit import computes_alpha
 from .parallel import workers
 from .parallel.shared import Publisher
 from .runner import Runner
@@ -111,7 +112,7 @@ class RenderSession:
         s = scene.settings
         self.integrator = integrators.create(scene)  # the render-process side: stages, reduce
         self.layout = self.integrator.layout
-        self.film = Film(s.width, s.height, s.passes, s.film_transparent, adaptive=s.adaptive)
+        self.film = Film(s.width, s.height, s.passes, computes_alpha(scene), adaptive=s.adaptive)
         cores = s.threads or workers.available_cores()
         # Worker processes are slow to start (bench/results/pipeline/report.md); worth it only
         # for renders of several items.

@@ -13,7 +13,7 @@ from .accel import Accel
 from .allocator import keep_freed_memory
 from .integrators import create
 from .integrators.base import Stage, TraceContext
-from .integrators.first_hit import FirstHit
+from .integrators.first_hit import FirstHit, computes_alpha
 from .lights.light_set import LightSet
 from .nodes.material import MaterialPrograms, SurfaceEmission
 from .passes import HIT as HIT_PASSES
@@ -60,7 +60,7 @@ class Tracer:
             BUILDS["lights"] += 1
         self.integrator = create(scene)
         self.integrator.build(TraceContext(scene, self.accel, self.lights, self.integrator.layout))
-        needs_hit = s.film_transparent or any(n in HIT_PASSES for n in s.passes)
+        needs_hit = computes_alpha(scene) or any(n in HIT_PASSES for n in s.passes)
         self.first_hit = FirstHit(scene, self.accel) if needs_hit else None
 
     def install(self, version: int, arrays: dict) -> None:

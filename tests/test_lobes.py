@@ -16,7 +16,8 @@ from ember.engine.bsdf import fresnel, lobes
 from ember.engine.bsdf.lobes import base, inputs
 from ember.engine.scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC,
                                 FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_KINDS, LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG,
-                                LOBE_TRANSPARENT, MAT_NODES, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, Materials)
+                                LOBE_TOON, LOBE_TRANSLUCENT, LOBE_TRANSPARENT, MAT_NODES, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT,
+                                Materials)
 
 from stats import ChiSquareTest, Sphere, integrate
 
@@ -56,6 +57,10 @@ CASES = {
                                distribution=DIST_BECKMANN), 70, False),
     "ashikhmin_shirley_r0.45": (dict(kind=LOBE_MICROFACET, fresnel=FRESNEL_NONE, color=(0.8, 0.7, 0.6), roughness=0.45,
                                      distribution=DIST_ASHIKHMIN_SHIRLEY), 50, False),
+    "translucent": (dict(kind=LOBE_TRANSLUCENT, color=(0.6, 0.7, 0.4)), 50, False),
+    "toon_diffuse_s0.4": (dict(kind=LOBE_TOON, color=(0.7, 0.6, 0.5), roughness=0.4, exponent=0.190334), 30, False),  # edge at cos 0.6: a cell edge
+    # (the Glossy Toon's cone is about the mirror direction: tests/test_toon_translucent.py)
+    "toon_diffuse_wide": (dict(kind=LOBE_TOON, color=(0.7, 0.6, 0.5), roughness=0.8, exponent=0.5), 70, False),
 }
 DELTA = {"mirror", "glass_smooth_outside", "glass_smooth_inside", "transparent"}
 SMOOTH = [name for name in CASES if name not in DELTA]

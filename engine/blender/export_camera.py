@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from ..errors import EmberError
+from ..panorama import PANORAMAS
 from ..scene import Camera
 
 
@@ -54,7 +55,7 @@ def world_from_camera_matrix(matrix_world) -> np.ndarray:
 
 
 def export_camera(depsgraph, scene, settings, warn) -> Camera:
-    """The scene camera (evaluated). Raises EmberError if missing or panoramic/custom."""
+    """The scene camera (evaluated). Raises EmberError if missing or of an unsupported type."""
     cam_ob = scene.camera
     if cam_ob is None:
         raise EmberError("The scene has no camera; add one and make it the active camera "
@@ -64,11 +65,10 @@ def export_camera(depsgraph, scene, settings, warn) -> Camera:
         raise EmberError(f"The scene camera '{cam_ob.name}' is not a camera object.")
     cam = cam_ob.data
     if cam.type == "PANO":
-        raise EmberError(f"Camera '{cam_ob.name}' is panoramic ({cam.panorama_type}); "
-                         "Ember supports perspective and orthographic cameras only.")
+        return _panoramic(cam_ob, scene, settings, warn)
     if cam.type not in ("PERSP", "ORTHO"):
         raise EmberError(f"Camera '{cam_ob.name}' has type {cam.type}; Ember supports "
-                         "perspective and orthographic cameras only.")
+                         "perspective, orthographic and panoramic cameras.")
     ortho = cam.type == "ORTHO"
     if not ortho and not cam.lens > 0:
         raise EmberError(f"Camera '{cam_ob.name}' has a focal length of {cam.lens} mm; it must be positive.")
@@ -91,6 +91,57 @@ def export_camera(depsgraph, scene, settings, warn) -> Camera:
     world_from_camera = world_from_camera_matrix(cam_ob.matrix_world)
     return Camera(world_from_camera=world_from_camera, window=window, ortho=ortho, clip_start=clip_start,
                   clip_end=clip_end, **lens_settings(cam_ob, world_from_camera))
+
+
+def fitted_sensor(cam, aspect_x: float, aspect_y: float) -> tuple:
+    """(width, height) mm of the camera's sensor fitted to an image of aspect_x : aspect_y as
+    Cycles' sync fits a panorama's: the fitted side the sensor's size, the other by the aspect."""
+    fit = cam.sensor_fit
+    horizontal = aspect_x >= aspect_y if fit == "AUTO" else fit == "HORIZONTAL"
+    size = float(cam.sensor_height if fit == "VERTICAL" else cam.sensor_width)
+    return (size, size * aspect_y / aspect_x) if horizontal else (size * aspect_x / aspect_y, size)
+
+
+def _panoramic(cam_ob, scene, settings, warn) -> Camera:
+    """A panoramic camera as Cycles' Blender sync sets it up (engine/panorama.py): the window
+    is the image's (u, v) square; a fisheye of sensor and lens has its sensor fitted to the
+    image as a perspective camera's is (the fitted side the sensor's size, the other one by
+    the image's aspect)."""
+    cam = cam_ob.data
+    kind = cam.panorama_type
+    if kind not in PANORAMAS:
+        raise EmberError(f"Camera '{cam_ob.name}' has the panorama type {kind}, which Ember does not support.")
+    render = scene.render
+    if cam.shift_x or cam.shift_y:
+        warn(f"Camera '{cam_ob.name}': lens shift is ignored on panoramic cameras.")
+    if render.use_motion_blur:
+        warn("Motion blur is not supported yet: the image is rendered without it.")
+    sensor = fitted_sensor(cam, settings.width * render.pixel_aspect_x, settings.height * render.pixel_aspect_y)
+    if kind == "EQUIRECTANGULAR":
+        pano_range = (cam.longitude_min, cam.longitude_max, cam.latitude_min, cam.latitude_max)
+    elif kind == "CENTRAL_CYLINDRICAL":
+        radius = max(float(cam.central_cylindrical_radius), 1e-6)
+        pano_range = (-cam.central_cylindrical_range_u_min, -cam.central_cylindrical_range_u_max,
+                      cam.central_cylindrical_range_v_min / radius, cam.central_cylindrical_range_v_max / radius)
+    else:
+        pano_range = Camera.pano_range
+    pano_range = tuple(float(a) for a in pano_range)
+    if not (all(math.isfinite(a) for a in pano_range) and pano_range[0] != pano_range[1]
+            and pano_range[2] != pano_range[3]):
+        raise EmberError(f"Camera '{cam_ob.name}' has an empty panorama range {pano_range}.")
+    polynomial = tuple(float(getattr(cam, f"fisheye_polynomial_k{i}")) for i in range(5))
+    if kind == "FISHEYE_LENS_POLYNOMIAL" and polynomial[1] == 0.0:
+        raise EmberError(f"Camera '{cam_ob.name}': its fisheye polynomial has no linear term (k1 = 0).")
+    if kind == "FISHEYE_EQUISOLID" and not cam.fisheye_lens > 0:
+        raise EmberError(f"Camera '{cam_ob.name}' has a fisheye lens of {cam.fisheye_lens} mm; it must be positive.")
+    clip_start, clip_end = float(cam.clip_start), float(cam.clip_end)
+    if not (math.isfinite(clip_start) and math.isfinite(clip_end) and clip_end > clip_start):
+        raise EmberError(f"Camera '{cam_ob.name}' has invalid clipping ({clip_start}, {clip_end}).")
+    world_from_camera = world_from_camera_matrix(cam_ob.matrix_world)
+    return Camera(world_from_camera=world_from_camera, window=np.array([0.0, 1.0, 0.0, 1.0]), clip_start=clip_start,
+                  clip_end=clip_end, panorama=kind, fisheye_fov=float(cam.fisheye_fov),
+                  fisheye_lens=float(cam.fisheye_lens), sensor=tuple(float(a) for a in sensor), pano_range=pano_range,
+                  polynomial=polynomial, **lens_settings(cam_ob, world_from_camera))
 
 
 def lens_settings(cam_ob, world_from_camera) -> dict:

@@ -618,7 +618,8 @@ def _node_row(mat, out, phong: bool, warn) -> dict | None:
     base = next((lobe.get("color") for lobe in compiled.lobes if lobe["kind"] in (LOBE_DIFFUSE, LOBE_OREN_NAYAR)),
                 (0.0, 0.0, 0.0))
     row = dict(kind=MAT_NODES, base_color=tuple(base), emission=tuple(compiled.emission_mean), name=mat.name,
-               lobes=[dict(lobe) for lobe in compiled.lobes], graph=None if compiled.constant else graph)
+               lobes=[dict(lobe) for lobe in compiled.lobes], graph=None if compiled.constant else graph,
+               holdout=compiled.holdout)
     if not compiled.constant:
         row["reads"] = compiled.reads
     if not compiled.lobes:

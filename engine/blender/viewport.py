@@ -23,7 +23,7 @@ from ..errors import EmberError
 from ..scene import Camera, Lights
 from ..viewport import ViewportSession
 from .export import Warnings, _look_dev, export_scene
-from .export_camera import export_camera
+from .export_camera import export_camera, fitted_sensor
 from .export_light import export_light
 from .export_material import DEFAULT_NAME, MaterialTable
 from .export_settings import export_settings
@@ -211,7 +211,7 @@ class ViewportDriver:
         try:
             if self.export is None or size != self.size:
                 self.export = LiveExport(depsgraph, overrides)
-                self.export.set_view(_region_camera(context))
+                self.export.set_view(_region_camera(context, self.export))
                 parts = set(PARTS)
             else:
                 parts = classify(depsgraph.updates)
@@ -236,7 +236,7 @@ class ViewportDriver:
     def view_draw(self, engine, context, depsgraph) -> None:
         if self.export is None:
             return
-        if self.export.set_view(_region_camera(context)):
+        if self.export.set_view(_region_camera(context, self.export)):
             self._start(engine, context, {"camera"})
         latest = self.session.latest() if self.session is not None else None
         if latest is not None:
@@ -252,9 +252,34 @@ class ViewportDriver:
             self.session = None
 
 
-def _region_camera(context) -> Camera:
+def _region_camera(context, export: LiveExport) -> Camera:
     r3d, space = context.region_data, context.space_data
+    ob = context.scene.camera
+    if r3d.view_perspective == "CAMERA" and ob is not None and ob.type == "CAMERA" and ob.data.type == "PANO" \
+            and export.scene.camera.panorama:
+        from bpy_extras.view3d_utils import location_3d_to_region_2d
+        corners = [location_3d_to_region_2d(context.region, r3d, ob.matrix_world @ v)
+                   for v in ob.data.view_frame(scene=context.scene)]
+        if all(c is not None for c in corners):
+            xs, ys = [c.x for c in corners], [c.y for c in corners]
+            border = (min(xs), max(xs), min(ys), max(ys))
+            world = dataclasses.replace(export.scene.camera,
+                                        world_from_camera=np.array(export.scene.camera.world_from_camera))
+            world.world_from_camera[:3, 3] += export.origin
+            return pano_view_camera(world, border, (context.region.width, context.region.height),
+                                    fitted_sensor(ob.data, border[1] - border[0], border[3] - border[2]))
     return view_camera(r3d.view_matrix, r3d.window_matrix, space.clip_start, space.clip_end)
+
+
+def pano_view_camera(camera: Camera, border, size, sensor) -> Camera:
+    """A panoramic camera seen through in a 3D view (Cycles' viewport camera view): the region
+    of `size` (width, height) pixels shows the panorama's image (u, v) in [0, 1]^2 within the
+    camera frame `border` (x min, x max, y min, y max, region pixels from the bottom left)
+    and its continuation around it; sensor (width, height) mm fitted to the frame."""
+    x0, x1, y0, y1 = border
+    bw, bh = max(x1 - x0, 1e-6), max(y1 - y0, 1e-6)
+    window = np.array([-x0 / bw, (size[0] - x0) / bw, -y0 / bh, (size[1] - y0) / bh])
+    return dataclasses.replace(camera, window=window, sensor=tuple(float(a) for a in sensor))
 
 
 def draw(engine, scene, latest) -> None:

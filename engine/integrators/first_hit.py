@@ -13,10 +13,18 @@ from .. import camera as camera_mod
 from .. import passes as passes_mod
 from ..bsdf.fast_path import make_closure, plain_lambert_albedo
 from ..nodes.material import MaterialPrograms
-from ..scene import RAY_CAMERA, Scene
+from ..scene import HOLDOUT, RAY_CAMERA, Scene
 from ..vec import take
 from ..visibility import RayVisibility
 from .surface import flat_normals, shading_frame
+
+
+def computes_alpha(scene: Scene) -> bool:
+    """Whether the film keeps an alpha: a transparent film, or holdouts (Holdout objects and
+    materials cut holes in the alpha whatever the film: Cycles' holdout writes to it)."""
+    vis = scene.mesh.visibility
+    return bool(scene.settings.film_transparent or np.any(scene.materials.holdout > 0)
+                or (vis is not None and np.any(vis & HOLDOUT)))
 
 
 class FirstHit:
@@ -24,7 +32,9 @@ class FirstHit:
         s = scene.settings
         self.scene, self.accel = scene, accel
         self.wanted = tuple(n for n in s.passes if n in passes_mod.HIT)
-        self.alpha = s.film_transparent
+        self.alpha = computes_alpha(scene)
+        self.background_alpha = 0.0 if s.film_transparent else 1.0  # of camera rays that find nothing
+        self.holdout = scene.materials.holdout if np.any(scene.materials.holdout > 0) else None
         # Objects hidden from camera rays, holdouts (Cycles: alpha 0 there): only when the scene has them.
         self.visibility = RayVisibility(accel, scene.mesh) if scene.mesh.visibility is not None else None
         self.lambert_albedo = plain_lambert_albedo(scene.materials)
@@ -49,10 +59,13 @@ class FirstHit:
         found = hit.prim >= 0
         out = {}
         if self.alpha:
-            opaque = found
+            # Outside a panorama's image: black and opaque (Cycles traces nothing there).
+            alpha = np.where(found, 1.0, np.where(tmax <= 0.0, 1.0, self.background_alpha))
             if self.visibility is not None and self.visibility.holdout is not None:
-                opaque = found & ~self.visibility.holdout[np.maximum(hit.prim, 0)]
-            out["alpha"] = opaque.astype(np.float64)[:, None]
+                alpha = np.where(found & self.visibility.holdout[np.maximum(hit.prim, 0)], 0.0, alpha)
+            if self.holdout is not None:  # Cycles: transparency += the holdout closures' mean weight
+                alpha = alpha - np.where(found, self.holdout[self.scene.mesh.material[np.maximum(hit.prim, 0)]], 0.0)
+            out["alpha"] = np.clip(alpha, 0.0, 1.0)[:, None]
         if not self.wanted:
             return out
         rows = np.flatnonzero(found)

@@ -160,6 +160,8 @@ class PathTracer:
         path (regeneration). The arrays are set in place."""
         n = len(paths)
         paths.beta, paths.pdf_prev, paths.no_mis = np.ones((n, 3)), np.zeros(n), np.ones(n, bool)
+        if paths.tmax is not None:  # a panoramic camera's rays outside its image carry nothing
+            paths.beta[paths.tmax <= 0.0] = 0.0
         paths.specular = np.ones(n, bool) if gather.caustic_ends is not None else None
         paths.depth = np.zeros(n, np.int64) if per_path else 0
         paths.bounces = self.light_paths.start(n, max_depth, per_path)

@@ -48,7 +48,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .. import sampling
+from .. import panorama, sampling
 from ..nodes import atmosphere
 from ..nodes.closures import closures
 from ..nodes.graph import Graph
@@ -148,6 +148,10 @@ class _Directions(ZeroFields, PathFields):
             left, right, bottom, top = -1.0, 1.0, -1.0, 1.0
         else:
             left, right, bottom, top = (float(v) for v in cam.window)
+        if cam is not None and cam.panorama:  # where the projection shows the direction
+            turn = panorama.panorama_to_camera(cam.panorama) * [[1.0], [1.0], [-1.0]]  # from z forward
+            u, v = panorama.from_direction(cam, (self._d @ m[:3, :3]) @ turn)
+            return np.stack([u, v, np.zeros(len(u))], axis=1)
         if cam is not None and cam.ortho:
             c = (self._d - m[:3, 3]) @ m[:3, :3]
             depth = np.ones(len(c))

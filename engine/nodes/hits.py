@@ -38,6 +38,7 @@ import numpy as np
 from ..scene import ATTRIBUTE_TYPES, Scene
 from ..textures import mesh_uv
 from ..vec import dot, normalize
+from .. import panorama
 from . import light_path
 from .state import Attribute, ShadingState
 
@@ -123,6 +124,14 @@ def camera_differentials(scene: Scene, directions: np.ndarray):
         return np.full(n, 0.5 * (abs(sx) + abs(sy))), np.zeros(n)
     rot = np.asarray(cam.world_from_camera, np.float64)[:3, :3]
     rot = rot / np.linalg.norm(rot, axis=0)
+    if cam.panorama:  # the change of the projection's direction over one pixel (camera_sample_panorama)
+        turn = panorama.panorama_to_camera(cam.panorama)
+        d = (np.asarray(directions, np.float64) @ rot) @ turn
+        u, v = panorama.from_direction(cam, d)
+        centre = panorama.to_direction(cam, u, v)
+        dx = panorama.to_direction(cam, u + sx, v) - centre
+        dy = panorama.to_direction(cam, u, v + sy) - centre
+        return np.zeros(n), 0.5 * (np.linalg.norm(dx, axis=1) + np.linalg.norm(dy, axis=1))
     d = np.asarray(directions, np.float64) @ rot  # camera space: looking down -z
     depth = np.where(d[:, 2] < 0.0, -d[:, 2], 1.0)
     v = d / depth[:, None]  # (x, y, -1): the point on the unit-depth image plane
@@ -400,6 +409,11 @@ class SurfaceHits(PathFields):
     def window(self):
         """The point in the camera's window: (0, 0) bottom left, (1, 1) top right, z 0."""
         cam = self.scene.camera
+        if cam.panorama:  # where the projection shows the point (Cycles' camera_world_to_ndc)
+            m = np.asarray(cam.world_from_camera, np.float64)
+            d = (self._p - m[:3, 3]) @ (m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0))
+            u, v = panorama.from_direction(cam, d @ panorama.panorama_to_camera(cam.panorama))
+            return np.stack([u, v, np.zeros(len(u))], axis=1)
         c = self.camera()  # z forward
         left, right, bottom, top = (float(v) for v in cam.window)
         depth = np.ones(len(c)) if cam.ortho else np.where(c[:, 2] != 0, c[:, 2], 1.0)

@@ -26,7 +26,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..scene import (DISTRIBUTIONS, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE,
-                     LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG, LOBE_TRANSPARENT, part_digest)
+                     LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG, LOBE_TOON, LOBE_TRANSLUCENT, LOBE_TRANSPARENT,
+                     TOON_DIFFUSE, TOON_GLOSSY, part_digest)
 from . import light_path
 from .closures import closures
 from .graph import Graph
@@ -35,7 +36,9 @@ from .program import Program, compile
 from .state import ShadingState
 
 LOBE_OF = {"diffuse": LOBE_DIFFUSE, "phong": LOBE_PHONG, "microfacet": LOBE_MICROFACET,
-           "dielectric": LOBE_DIELECTRIC, "transparent": LOBE_TRANSPARENT, "oren_nayar": LOBE_OREN_NAYAR}
+           "dielectric": LOBE_DIELECTRIC, "transparent": LOBE_TRANSPARENT, "oren_nayar": LOBE_OREN_NAYAR,
+           "translucent": LOBE_TRANSLUCENT, "toon": LOBE_TOON}
+TOON_COMPONENTS = {"DIFFUSE": TOON_DIFFUSE, "GLOSSY": TOON_GLOSSY}
 FRESNEL_OF = {"none": FRESNEL_NONE, "f82": FRESNEL_F82, "dielectric": FRESNEL_DIELECTRIC}
 # Lobe inputs a closure may carry, and whether each is a colour or vector (3 components).
 PARAMS = {"color": True, "tint": True, "roughness": False, "ior": False, "exponent": False}
@@ -109,6 +112,7 @@ class MaterialProgram:
     normal: bool
     notes: tuple = field(default_factory=tuple)
     emission_mean: np.ndarray = field(default_factory=lambda: np.zeros(3))  # over PROBES points
+    holdout: float = 0.0  # mean over RGB of the Holdout closures' weight (over PROBES points where it varies)
     displacement: Program | None = None  # the bump normal of the Material Output's displacement
 
     @property
@@ -186,6 +190,8 @@ def compile_material(graph: Graph) -> MaterialProgram:
             lobe["fresnel"] = FRESNEL_OF[c.params["fresnel"]]
         if "distribution" in c.params:
             lobe["distribution"] = DISTRIBUTIONS[c.params["distribution"]]
+        if "component" in c.params:  # the Toon's, where its lobe keeps it
+            lobe["distribution"] = TOON_COMPONENTS[c.params["component"]]
         if "layer" in c.params:
             lobe["layer"] = tags[c.params["layer"]]
         lobes.append(lobe)
@@ -197,6 +203,16 @@ def compile_material(graph: Graph) -> MaterialProgram:
                                         if w not in program.warnings)
     mp = MaterialProgram(program, tuple(bsdfs), lobes, varying, emission, normal, warnings,
                          displacement=displacement)
+    holdouts = [c.weight for c in made if c.kind == "holdout"]
+    if holdouts:
+        if any(_varies(w, True) for w in holdouts):
+            state = probe_state(PROBES)
+            made_at = closures(program.run(state)["surface"])
+            mp.holdout = float(np.mean(sum(np.broadcast_to(c.weight, (PROBES, 3)) for c in made_at
+                                           if c.kind == "holdout")))
+            mp.notes = mp.notes + ("a Holdout weight that varies over the surface (its mean)",)
+        else:
+            mp.holdout = float(np.mean(sum(np.asarray(w, np.float64) for w in holdouts)))
     if emission is not None:
         mp.emission_mean = emission
     else:  # the largest mean any kind of ray sees: a surface black to camera rays still lights

@@ -164,9 +164,10 @@ def transparent(node, inputs, state):
     return {"BSDF": _closure("transparent", ONES, node.label, color=triple(inputs["Color"]))}
 
 
-@node("ShaderNodeHoldout", "Shader", notes=lambda node: ["Holdout rendered black"])
+@node("ShaderNodeHoldout", "Shader")
 def holdout(node, inputs, state):
-    return {"Holdout": ()}
+    """No light (its share renders black) and a hole in the alpha of camera rays (Materials.holdout)."""
+    return {"Holdout": (Closure("holdout", ONES, {}, node.label),)}
 
 
 _PRINCIPLED_IGNORED = (("coat", "Coat Weight", 0.0), ("sheen", "Sheen Weight", 0.0),
@@ -239,8 +240,22 @@ def principled(node, inputs, state):
     return {"BSDF": out + emission}
 
 
+@node("ShaderNodeBsdfTranslucent", "Shader")
+def translucent(node, inputs, state):
+    return {"BSDF": _closure("translucent", ONES, node.label, color=triple(inputs["Color"]), **_normal(node, inputs))}
+
+
+@node("ShaderNodeBsdfToon", "Shader")
+def toon(node, inputs, state):
+    """Cycles' Toon: Size and Smooth as fractions of pi/2 (engine/bsdf/lobes/toon.py)."""
+    return {"BSDF": _closure("toon", ONES, node.label, color=triple(inputs["Color"]),
+                             roughness=np.clip(scalar(inputs["Size"]), 0.0, 1.0),
+                             exponent=np.clip(scalar(inputs["Smooth"]), 0.0, 1.0),
+                             component=node.prop("component", "DIFFUSE"), **_normal(node, inputs))}
+
+
 # Shaders Ember does not build yet: the diffuse of their Color (grey without one), with a note.
-_APPROXIMATED = ("ShaderNodeBsdfSheen", "ShaderNodeBsdfToon", "ShaderNodeBsdfTranslucent", "ShaderNodeBsdfHair",
+_APPROXIMATED = ("ShaderNodeBsdfSheen", "ShaderNodeBsdfHair",
                  "ShaderNodeBsdfHairPrincipled", "ShaderNodeSubsurfaceScattering", "ShaderNodeBsdfRayPortal",
                  "ShaderNodeEeveeSpecular")
 
@@ -254,4 +269,5 @@ def _as_diffuse(node, inputs, state):
 APPROXIMATED = tuple(node(kind, "Shader", notes=lambda node: ["rendered as diffuse"])(_as_diffuse)
                      for kind in _APPROXIMATED)
 
-NODES = (diffuse, glossy, metallic, glass, refraction, transparent, holdout, principled) + APPROXIMATED
+NODES = (diffuse, glossy, metallic, glass, refraction, transparent, holdout, principled, translucent,
+         toon) + APPROXIMATED

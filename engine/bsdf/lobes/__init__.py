@@ -10,6 +10,8 @@ module here and one entry in LOBES; phase functions (volumes) have the same inte
     3     Dielectric    glossy + transmit  glossy / transmission            smooth or ior ~ 1
     4     Transparent   none               transmission                     always
     5     OrenNayar     diffuse            diffuse                          never
+    7     Translucent   diffuse            diffuse                          never
+    8     Toon          diffuse + glossy   diffuse (Glossy component: glossy colour)  never
 """
 from __future__ import annotations
 
@@ -23,9 +25,20 @@ from .henyey_greenstein import HenyeyGreenstein
 from .microfacet import Microfacet
 from .oren_nayar import OrenNayar
 from .phong import Phong
+from .toon import Toon
+from .translucent import Translucent
 from .transparent import Transparent
 
-LOBES: tuple[SurfaceLobe, ...] = (Diffuse(), Phong(), Microfacet(), Dielectric(), Transparent(), OrenNayar())
+
+
+class _SheenSlot(Diffuse):
+    """Holds kind 6 (LOBE_SHEEN, built on another branch) until that lobe merges; nothing
+    makes a lobe of this kind here."""
+    kind = 6
+
+
+LOBES: tuple[SurfaceLobe, ...] = (Diffuse(), Phong(), Microfacet(), Dielectric(), Transparent(), OrenNayar(),
+                                  _SheenSlot(), Translucent(), Toon())
 assert [lobe.kind for lobe in LOBES] == list(range(LOBE_KINDS)), "LOBES is indexed by kind id"
 PHASE_FUNCTIONS: tuple[Lobe, ...] = (HenyeyGreenstein(),)
 

@@ -223,6 +223,7 @@ class PhotonIntegrator(Integrator):
         idx = np.arange(n)
         o32 = o64.astype(np.float32)
         beta = np.ones((n, 3))
+        beta[tmax <= 0.0] = 0.0  # a panoramic camera's rays outside its image carry nothing
         skip = np.full(n, -1, np.int64)
         dist = np.zeros(n)  # length of the camera path so far (pixel footprints)
         mesh = scene.mesh

@@ -1,0 +1,91 @@
+"""Small bpy scenes for comparisons with Cycles: an empty scene at a size, a node material,
+a camera, and the add-on registered for the time of a comparison."""
+from __future__ import annotations
+
+import contextlib
+
+import bpy
+import numpy as np
+
+import ember
+
+
+def new_scene(size: int, world=(0.0, 0.0, 0.0)):
+    """An empty scene of size x size pixels, a constant world, box filter, CPU, no denoising."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    w = bpy.data.worlds.new("World")
+    sc.world, w.color = w, world
+    sc.render.resolution_x = sc.render.resolution_y = size
+    sc.render.resolution_percentage = 100
+    sc.cycles.pixel_filter_type = "BOX"
+    sc.cycles.device = "CPU"
+    sc.cycles.use_denoising = False
+    return sc
+
+
+def node_material(name):
+    """(material, its node tree, its Material Output) with nothing else in the tree."""
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        if n.bl_idname != "ShaderNodeOutputMaterial":
+            nt.nodes.remove(n)
+    return mat, nt, nt.nodes["Material Output"]
+
+
+def camera(sc, location, rotation):
+    bpy.ops.object.camera_add(location=location, rotation=rotation)
+    sc.camera = bpy.context.active_object
+    return sc.camera
+
+
+@contextlib.contextmanager
+def addon():
+    ember.register()
+    try:
+        yield
+    finally:
+        ember.unregister()
+
+
+def diffuse_floor(size=8.0, color=(0.8, 0.8, 0.8)):
+    """A plane at z = 0 with a Diffuse BSDF of `color` (given explicitly: Ember's grey for an
+    object without a material is a few per cent brighter than Cycles' default surface)."""
+    bpy.ops.mesh.primitive_plane_add(size=size)
+    mat, nt, out = node_material("Floor")
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = (*color, 1.0)
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    bpy.context.active_object.data.materials.append(mat)
+    return bpy.context.active_object
+
+
+def rgba_cycles(sc, samples: int, seed: int, path) -> np.ndarray:
+    """(H, W, 4) Cycles' render with its alpha, through an RGBA EXR at `path` (top row first)."""
+    sc.render.engine = "CYCLES"
+    sc.cycles.samples, sc.cycles.seed = samples, seed
+    sc.render.filepath = str(path)
+    sc.render.image_settings.file_format = "OPEN_EXR"
+    sc.render.image_settings.color_mode = "RGBA"
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(str(path))
+    h, w = sc.render.resolution_y, sc.render.resolution_x
+    out = np.array(img.pixels[:]).reshape(h, w, 4)[::-1]
+    bpy.data.images.remove(img)
+    return out
+
+
+def rgba_ember(sc, samples: int, seed: int, integrator: str = "PATH") -> np.ndarray:
+    """(H, W, 4) Ember's F12 render with its film's alpha."""
+    from ember.engine.blender import final
+    from cycles_renders import _Film
+    sc.render.engine = "EMBER"
+    sc.ember.integrator, sc.ember.samples, sc.ember.seed = integrator, samples, seed
+    grab = _Film()
+    final.listeners.append(grab)
+    try:
+        bpy.ops.render.render()
+    finally:
+        final.listeners.remove(grab)
+    return grab.film.image().reshape(sc.render.resolution_y, sc.render.resolution_x, 4)
