@@ -107,6 +107,9 @@ class Mesh:
     (RGBA), Pass Index and Cycles' random number; instancer (B,5) float64: the instancer's
     generated coordinates (3) and UV (2) at an instance (zeros for other objects);
     material_pass_index (M,) float64: each material's Pass Index.
+
+    terminator (B,2) float32 per object (with `objects`): Cycles' shadow terminator Geometry
+    Offset and Shading Offset (Object Properties > Shading), as Blender shows them; None: both 0.
     """
 
     vertices: np.ndarray
@@ -123,6 +126,7 @@ class Mesh:
     object_info: np.ndarray = None
     instancer: np.ndarray = None
     material_pass_index: np.ndarray = None
+    terminator: np.ndarray = None
 
     def __post_init__(self):
         if self.uvs is None:

@@ -290,6 +290,13 @@ class Needs(NamedTuple):
         return bool(self.objects) or self.info
 
 
+def _terminator(ob) -> tuple:
+    """The object's shadow terminator Geometry Offset and Shading Offset (Cycles reads them
+    from the object, instances from their object)."""
+    return (float(getattr(ob, "shadow_terminator_geometry_offset", 0.0)),
+            float(getattr(ob, "shadow_terminator_shading_offset", 0.0)))
+
+
 def _object_record(ob, inst, needs: Needs):
     """(object_info (6,) or None, {attribute name: RGBA}) of an instance, as Cycles' object sync
     sets them (blender/object.cpp): Color, Pass Index and the random number (the depsgraph
@@ -329,6 +336,7 @@ class MeshCollector:
         self._protos: dict[int, _Proto | None] = {} if protos is None else protos
         self._groups: dict[tuple, list] = {}
         self._records: dict[tuple, list] = {}  # per group, per instance: _object_record or None
+        self._terminator: dict[tuple, list] = {}  # per group, per instance: _terminator(ob)
         self._slot_cache: dict[tuple, tuple] = {}
         self._needs_cache: dict[tuple, Needs] = {}
         self._needs = Needs()  # everything any material read so far
@@ -389,6 +397,7 @@ class MeshCollector:
             self._records[group] = []
         lst.append(matrix_world)
         self._records[group].append(_object_record(ob, inst, needs) if needs.per_object else None)
+        self._terminator.setdefault(group, []).append(_terminator(ob))
 
     def bounds(self) -> np.ndarray:
         """(2,3) float64 world bounding box (min, max) of every collected instance, from the
@@ -422,12 +431,14 @@ class MeshCollector:
         shift = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
         plan = []  # (proto, material lookup, visibility, matrices (k,4,4), det (k,))
         placed_records = []  # per plan entry, per instance: _object_record or None
+        terminator = []  # per plan entry: (k,2) its instances' shadow terminator offsets
         n_vert = n_tri = 0
         dropped = 0
         nonfinite, bad_transform = [], []  # object names
         for group, matrices in self._groups.items():
             data_key, mats, vis = group
             records = self._records.get(group) or [None] * len(matrices)
+            offsets = np.array(self._terminator.get(group) or [(0.0, 0.0)] * len(matrices), np.float32).reshape(-1, 2)
             proto = self._protos[data_key]
             M = np.array(matrices, np.float64).reshape(-1, 4, 4)
             det = np.linalg.det(M[:, :3, :3])
@@ -442,10 +453,12 @@ class MeshCollector:
                 dropped += len(proto.triangles) * int(np.count_nonzero(~ok & finite))  # scaled to 0
                 M, det = M[ok], det[ok]
                 records = [r for r, keep in zip(records, ok) if keep]
+                offsets = offsets[ok]
             if len(M) == 0 or len(proto.triangles) == 0:
                 continue
             plan.append((proto, mats, vis, M, det))
             placed_records.append(records)
+            terminator.append(offsets)
             n_vert += len(M) * len(proto.positions)
             n_tri += len(M) * len(proto.triangles)
 
@@ -542,6 +555,7 @@ class MeshCollector:
                     objects=np.array(starts + [n_tri], np.int64) if starts else None,
                     object_matrix=np.concatenate(object_matrix) if starts else None,
                     object_texspace=np.concatenate(object_texspace) if starts else None,
+                    terminator=np.concatenate(terminator) if starts else None,
                     **self._program_data(plan, placed_records, n_tri))
         if placed is not None:
             placed.update(mesh=mesh, groups=now)

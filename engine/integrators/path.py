@@ -25,7 +25,7 @@ import numpy as np
 from ..vec import dot, gatherer, max3, normalize, scale, take
 
 from .. import camera as camera_mod
-from ..accel import Accel, offset_origin
+from ..accel import Accel
 from ..bsdf.closure import LABEL_TRANSPARENT
 from ..bsdf.fast_path import make_closure, plain_lambert_albedo
 from ..nodes import light_path as lp
@@ -42,6 +42,7 @@ from .base import Integrator, Stage
 from .light_passes import LightTally
 from .path_options import CAMERA_PATHS, Clamp, ClosureOptions, Gather, LightPaths, Strategy
 from .path_state import PathState, rows_of
+from .shadows import ShadowRays
 from .surface import emitted, flat_frame_rows, flat_frames, flat_normals, shading_frame, towards
 from ..layout import BatchLayout
 
@@ -80,6 +81,7 @@ class PathTracer:
         # Barycentrics serve smooth normals and the general closure (textures) only.
         self.needs_bary = self.flat_normal is None or bool(np.isnan(self.lambert_albedo).any())
         self.visibility = RayVisibility(accel, scene.mesh)  # objects hidden from some rays
+        self.shadows = ShadowRays(scene, self.visibility, self.programs)  # through transparent surfaces
         st = scene.settings
         self.strategy = Strategy.of(st.strategy)
         self.clamp = Clamp.of(st)  # None: off
@@ -162,6 +164,7 @@ class PathTracer:
         paths.beta, paths.pdf_prev, paths.no_mis = np.ones((n, 3)), np.zeros(n), np.ones(n, bool)
         paths.specular = np.ones(n, bool) if gather.caustic_ends is not None else None
         paths.depth = np.zeros(n, np.int64) if per_path else 0
+        paths.t_mis = np.zeros(n) if self.light_paths.any_transparent else None
         paths.bounces = self.light_paths.start(n, max_depth, per_path)
         if self.track:
             self._track(paths, gather)
@@ -212,8 +215,14 @@ class PathTracer:
         camera_ray = kind == RAY_CAMERA if kind is not None else np.broadcast_to(depth == 0, len(paths))
         direct = b.total <= 1 if self.clamp is not None else None
         use_mis = ~paths.no_mis
+        # After transparent passes the MIS state is the last vertex's, o_mis, t_mis behind the origin.
+        o_mis, t_mis = paths.o64, None
+        if paths.t_mis is not None and paths.t_mis.any():
+            t_mis = paths.t_mis
+            o_mis = paths.o64 - scale(paths.d, t_mis)
         if len(lights.hittable):
-            c = paths.beta * lights.emission_along(paths.o64, paths.d, hit.t, paths.pdf_prev, use_mis, camera_ray, kind)
+            c = paths.beta * lights.emission_along(o_mis, paths.d, hit.t if t_mis is None else hit.t + t_mis,
+                                                   paths.pdf_prev, use_mis, camera_ray, kind, tmin=t_mis)
             if lit is not None:
                 c[~lit] = 0.0
             self._add(L, idx, self._clamp(c, direct), tally, depth)
@@ -236,7 +245,8 @@ class PathTracer:
             at = hit.take(r)
             Le = emitted(self.scene, self.programs, self.flat_normal, Le, at, take(paths.d, r), ray)
             cos_l = np.abs(dot(take(paths.d, r), at.ng))
-            pdf_light = lights.pdf_triangle_hit(prim, take(paths.o64, r), hit.t[r], cos_l, at.b)
+            pdf_light = lights.pdf_triangle_hit(prim, take(o_mis, r), hit.t[r] if t_mis is None else hit.t[r] + t_mis[r],
+                                                cos_l, at.b)
             w = np.where(paths.no_mis[r], 1.0, pdf_prev / np.maximum(pdf_prev + pdf_light, 1e-300))
             self._add(L, idx[r], self._clamp(take(paths.beta, r) * scale(Le, w), b.total <= 1, r), tally, depth)
 
@@ -318,6 +328,9 @@ class PathTracer:
         ls = self.lights.sample(at(paths.p), u[:, 2], u[:, :2], in_unit=True,
                                 ray=b.record(active) if self.lights.world_reads else None)
         f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility)
+        shift = self.shadows.shading_factor(at(paths.prim), at(bsdf.ns), ls.wi)  # the Shading Offset
+        if shift is not None:
+            f = scale(f, shift)
         cos_i = np.abs(dot(ls.wi, at(bsdf.ns)))  # ns: may be perturbed (normal maps)
         pdf_b_mis = at(q) * pdf_b if self.strategy.mis else 0.0
         w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_b_mis, 1e-300))
@@ -329,11 +342,15 @@ class PathTracer:
             return
         rows = active[test]
         n_off = take(paths.ng, rows) if reflects else towards(take(paths.ng, rows), take(ls.wi, test))
-        blocked = self.visibility.occluded(offset_origin(take(paths.p, rows), n_off), take(ls.target, test),
-                                           paths.prim[rows], ls.target_prim[test])
-        lit = np.flatnonzero(~blocked)
+        passed = None if b.counts is None or not self.shadows.any_transparent else b.counts[rows, LABEL_TRANSPARENT]
+        o, skip = self.shadows.origin(take(paths.p, rows), n_off, paths.prim[rows],
+                                      None if paths.bary is None else take(paths.bary, rows),
+                                      take(getattr(bsdf, "n_smooth", bsdf.ns), rows), take(paths.ng, rows),
+                                      take(ls.wi, test))
+        lit, T = self.shadows.trace(o, take(ls.target, test), skip, ls.target_prim[test], passed)
         rows = rows[lit]
-        c = self._clamp(take(contrib, test[lit]), b.total == 0, rows)
+        c = take(contrib, test[lit])
+        c = self._clamp(c if T is None else c * T, b.total == 0, rows)
         _accumulate(L, paths.idx[rows], c)
         if tally:
             f_cls = bsdf.eval_by_class(take(ls.wi, test[lit]), rows) if paths.depth == 0 else None
@@ -350,6 +367,9 @@ class PathTracer:
         else:
             u = sampler.get(base + _BSDF, paths.idx, 4)
             bs, u_rr = bsdf.sample(u[:, :2], u[:, 2]), u[:, 3]
+        shift = self.shadows.shading_factor(paths.prim, bsdf.ns, bs.wi)  # the Shading Offset
+        if shift is not None:
+            bs.weight = scale(bs.weight, shift)
         if tally and paths.depth == 0:
             tally.first_bounce(paths.idx, bsdf, bs)
         survive = bs.valid & (u_rr < q)
@@ -358,12 +378,18 @@ class PathTracer:
         beta = paths.beta * scale(bs.weight, np.divide(1.0, q, out=np.zeros(m), where=survive))
         survive &= max3(beta) > 0
         keep = np.flatnonzero(survive)
-        paths = paths.leave(keep, take(bs.wi, keep), take(beta, keep), reflects)
+        vertex = paths
+        paths = vertex.leave(keep, take(bs.wi, keep), take(beta, keep), reflects)
         paths.bounces = paths.bounces.count(bs, keep, self.light_paths.per_label)
         # Strategy switches: pdf_prev 0 makes emission found after a non-delta bounce weigh 0
         # ("light" alone); no_mis makes it weigh 1 (after delta bounces, or "bsdf" alone).
         paths.pdf_prev = (q * bs.pdf)[keep] if self.strategy.bsdf_hits else np.zeros(len(keep))
         paths.no_mis = bs.delta[keep] | (not self.strategy.nee)
+        if vertex.t_mis is not None:  # a transparent pass keeps the MIS state of the vertex before (Cycles)
+            through = bs.label[keep] == LABEL_TRANSPARENT
+            paths.t_mis = np.where(through, vertex.t_mis[keep], 0.0)
+            paths.pdf_prev = np.where(through, vertex.pdf_prev[keep], paths.pdf_prev)
+            paths.no_mis = np.where(through, vertex.no_mis[keep], paths.no_mis)
         return paths
 
     def _clamp(self, c: np.ndarray, direct, rows=None) -> np.ndarray:

@@ -32,8 +32,10 @@ from ...nodes.material import MaterialPrograms
 from ...errors import Cancelled
 from ...lights.emission import PhotonEmitter
 from ...vec import dot, gatherer, max3, scale, take
+from ...visibility import RayVisibility
 from ..base import Integrator, Stage
 from ..path_state import PathState
+from ..shadows import ShadowRays
 from ..surface import emitted, flat_normals, shading_frame, towards
 from .photon_map import PhotonMap, RadiancePhotons
 from .tracing import PhotonTracer, diffuse_materials
@@ -149,6 +151,7 @@ class PhotonIntegrator(Integrator):
         self.lambert_albedo = plain_lambert_albedo(self.scene.materials)
         self.programs = MaterialPrograms.of(self.scene.materials)
         self.flat_normal = flat_normals(self.scene.mesh)
+        self.shadows = ShadowRays(self.scene, RayVisibility(ctx.accel, self.scene.mesh), self.programs)
         self.stores = diffuse_materials(self.scene.materials)
         self.emissive_material = self.scene.materials.emission.mean(axis=1) > 0
         # per triangle; a miss (-1) reads the last entry, False
@@ -353,9 +356,9 @@ class PhotonIntegrator(Integrator):
         test = np.flatnonzero(max3(contrib) > 0)
         if len(test):
             o_shadow = offset_origin(take(at(p), test), towards(take(at(ng_f), test), take(ls.wi, test)))
-            blocked = self.ctx.accel.occluded(o_shadow, take(ls.target, test), prim[x[test]], ls.target_prim[test])
-            lit = test[~blocked]
-            _accumulate(L, rows[lit], take(contrib, lit))
+            lit, T = self.shadows.trace(o_shadow, take(ls.target, test), prim[x[test]], ls.target_prim[test])
+            lit = test[lit]
+            _accumulate(L, rows[lit], take(contrib, lit) if T is None else take(contrib, lit) * T)
 
     def _gather(self, sampler, pts, p, ng_f, prim, bsdf, G, emission_only=False, emission=True):
         """Radiance (K,3) x BSDF weight of one gather ray from each diffuse point pts (K,);
