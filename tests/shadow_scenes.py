@@ -134,4 +134,4 @@ def _set_offsets(ob, geometry, shading):
     if geometry is not None:
         ob.shadow_terminator_geometry_offset = geometry
     if shading is not None:
-        ob.shadow_terminator_normal_offset = shading
+        ob.shadow_terminator_shading_offset = shading

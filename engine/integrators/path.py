@@ -327,7 +327,7 @@ class PathTracer:
         u = sampler.get(1 + _GROUPS * rows_of(paths.depth, active) + _LIGHT, at(paths.idx), 3)
         ls = self.lights.sample(at(paths.p), u[:, 2], u[:, :2], in_unit=True,
                                 ray=b.record(active) if self.lights.world_reads else None)
-        f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility)
+        f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility, self.shadows.lifted(at(paths.prim)))
         shift = self.shadows.shading_factor(at(paths.prim), at(bsdf.ns), ls.wi)  # the Shading Offset
         if shift is not None:
             f = scale(f, shift)
@@ -341,7 +341,8 @@ class PathTracer:
         if len(test) == 0:
             return
         rows = active[test]
-        n_off = take(paths.ng, rows) if reflects else towards(take(paths.ng, rows), take(ls.wi, test))
+        n_off = take(paths.ng, rows) if reflects and self.shadows.geometry_offset is None else \
+            towards(take(paths.ng, rows), take(ls.wi, test))
         passed = None if b.counts is None or not self.shadows.any_transparent else b.counts[rows, LABEL_TRANSPARENT]
         o, skip = self.shadows.origin(take(paths.p, rows), n_off, paths.prim[rows],
                                       None if paths.bary is None else take(paths.bary, rows),

@@ -72,6 +72,11 @@ class ShadowRays:
         lift, keep = terminator_lift(self.scene.mesh, prim, bary, p, n_smooth, ng, wi, cutoff)
         return offset_origin(p + lift, n_off), np.where(keep, prim, -1)
 
+    def lifted(self, prim):
+        """(K,) bool where shadow rays from triangles prim (K,) may rise by the terminator
+        offset (the BSDF there is Cycles', judged by the shading normal alone), or None."""
+        return None if self.geometry_offset is None else self.geometry_offset[prim] > 0
+
     def shading_factor(self, prim, ns, wi):
         """(K,) the Shading Offset's factor on the BSDF at triangles prim (K,) for light from
         wi (K,3) (shift_cos_in against the shading normal ns), or None where no object has one."""
