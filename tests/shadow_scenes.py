@@ -135,3 +135,58 @@ def _set_offsets(ob, geometry, shading):
         ob.shadow_terminator_geometry_offset = geometry
     if shading is not None:
         ob.shadow_terminator_shading_offset = shading
+
+
+def _sphere(sc, name, location, radius, mat):
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=24, ring_count=12, radius=radius, location=location)
+    ob = bpy.context.active_object
+    ob.name = name
+    ob.data.shade_smooth()
+    ob.data.materials.append(mat)
+    ob.shadow_terminator_geometry_offset = 0.0
+    return ob
+
+
+def _linking_collection(name, entries):
+    """A collection holding objects with link states: entries [(object, 'INCLUDE' | 'EXCLUDE')]."""
+    coll = bpy.data.collections.new(name)
+    for ob, state in entries:
+        coll.objects.link(ob)
+    states = dict((o.name, s) for o, s in entries)
+    for ob, entry in zip(coll.objects, coll.collection_objects):  # parallel lists
+        entry.light_linking.link_state = states[ob.name]
+    return coll
+
+
+def linking(size: int = 24):
+    """Two spheres A (left) and B (right) on a floor under a grey shade. Key: a soft point
+    light that lights A alone (receivers: A included). Fill: an area light that lights all but
+    A (receivers: A excluded) and that only B shadows (blockers: B included: the shade casts
+    no shadow from it). Glow: an emissive card that lights B alone."""
+    sc = _base(size)
+    sc.cycles.max_bounces = 4
+    _plane(sc, "floor", 2.0, _diffuse("floor", (0.7, 0.7, 0.7)))
+    a = _sphere(sc, "A", (-0.7, 0.0, 0.45), 0.45, _diffuse("A", (0.8, 0.3, 0.2)))
+    b = _sphere(sc, "B", (0.7, 0.0, 0.45), 0.45, _diffuse("B", (0.2, 0.4, 0.8)))
+    _plane(sc, "shade", 0.4, _diffuse("shade", (0.5, 0.5, 0.5)), location=(0.6, 0.2, 1.6))
+    key = bpy.data.objects.new("Key", bpy.data.lights.new("Key", "POINT"))
+    key.data.energy, key.data.shadow_soft_size = 300.0, 0.2
+    key.location = (-1.2, -1.0, 2.2)
+    sc.collection.objects.link(key)
+    key.light_linking.receiver_collection = _linking_collection("key receivers", [(a, "INCLUDE")])
+    fill = bpy.data.objects.new("Fill", bpy.data.lights.new("Fill", "AREA"))
+    fill.data.energy, fill.data.size = 200.0, 0.8
+    fill.location = (0.8, 0.3, 2.6)
+    sc.collection.objects.link(fill)
+    fill.light_linking.receiver_collection = _linking_collection("fill receivers", [(a, "EXCLUDE")])
+    fill.light_linking.blocker_collection = _linking_collection("fill blockers", [(b, "INCLUDE")])
+    glow_mat = bpy.data.materials.new("glow")
+    nt = glow_mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 6.0
+    nt.links.new(em.outputs["Emission"], nt.nodes["Material Output"].inputs["Surface"])
+    glow = _plane(sc, "glow", 0.25, glow_mat, location=(1.6, -0.2, 0.6), rotation=(0.0, -70.0, 0.0))
+    glow.light_linking.receiver_collection = _linking_collection("glow receivers", [(b, "INCLUDE")])
+    _camera(sc, (0.0, -4.2, 2.6), (0.0, 0.0, 0.5))
+    return sc

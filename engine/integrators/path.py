@@ -81,7 +81,7 @@ class PathTracer:
         # Barycentrics serve smooth normals and the general closure (textures) only.
         self.needs_bary = self.flat_normal is None or bool(np.isnan(self.lambert_albedo).any())
         self.visibility = RayVisibility(accel, scene.mesh)  # objects hidden from some rays
-        self.shadows = ShadowRays(scene, self.visibility, self.programs)  # through transparent surfaces
+        self.shadows = ShadowRays(scene, self.visibility, self.programs, lights.links)  # transparency, linking
         st = scene.settings
         self.strategy = Strategy.of(st.strategy)
         self.clamp = Clamp.of(st)  # None: off
@@ -165,6 +165,7 @@ class PathTracer:
         paths.specular = np.ones(n, bool) if gather.caustic_ends is not None else None
         paths.depth = np.zeros(n, np.int64) if per_path else 0
         paths.t_mis = np.zeros(n) if self.light_paths.any_transparent else None
+        paths.receiver = np.full(n, -1, np.int64) if self.lights.light_linked else None
         paths.bounces = self.light_paths.start(n, max_depth, per_path)
         if self.track:
             self._track(paths, gather)
@@ -222,7 +223,8 @@ class PathTracer:
             o_mis = paths.o64 - scale(paths.d, t_mis)
         if len(lights.hittable):
             c = paths.beta * lights.emission_along(o_mis, paths.d, hit.t if t_mis is None else hit.t + t_mis,
-                                                   paths.pdf_prev, use_mis, camera_ray, kind, tmin=t_mis)
+                                                   paths.pdf_prev, use_mis, camera_ray, kind, tmin=t_mis,
+                                                   receiver=paths.receiver)
             if lit is not None:
                 c[~lit] = 0.0
             self._add(L, idx, self._clamp(c, direct), tally, depth)
@@ -231,11 +233,14 @@ class PathTracer:
             r = np.flatnonzero(missed if lit is None else missed & lit)
             c = take(paths.beta, r) * lights.escaped(take(paths.d, r), paths.pdf_prev[r], use_mis[r], camera_ray[r],
                                                      None if kind is None else kind[r],
-                                                     b.record(r) if lights.world_reads else None)
+                                                     b.record(r) if lights.world_reads else None,
+                                                     None if paths.receiver is None else paths.receiver[r])
             self._add(L, idx[r], self._clamp(c, direct, r), tally, depth, escaped=True)
         emits = self.emissive_prim[hit.prim]
         if lit is not None:
             emits &= lit
+        if paths.receiver is not None and emits.any():  # light linking: lights linked to the ray's origin
+            emits &= lights.links.lights(lights.light_of_prim[np.maximum(hit.prim, 0)], paths.receiver)
         if emits.any():
             r = np.flatnonzero(emits)
             prim, pdf_prev = hit.prim[r], paths.pdf_prev[r]
@@ -246,7 +251,7 @@ class PathTracer:
             Le = emitted(self.scene, self.programs, self.flat_normal, Le, at, take(paths.d, r), ray)
             cos_l = np.abs(dot(take(paths.d, r), at.ng))
             pdf_light = lights.pdf_triangle_hit(prim, take(o_mis, r), hit.t[r] if t_mis is None else hit.t[r] + t_mis[r],
-                                                cos_l, at.b)
+                                                cos_l, at.b, None if paths.receiver is None else paths.receiver[r])
             w = np.where(paths.no_mis[r], 1.0, pdf_prev / np.maximum(pdf_prev + pdf_light, 1e-300))
             self._add(L, idx[r], self._clamp(take(paths.beta, r) * scale(Le, w), b.total <= 1, r), tally, depth)
 
@@ -326,7 +331,8 @@ class PathTracer:
         at = gatherer(active, m)
         u = sampler.get(1 + _GROUPS * rows_of(paths.depth, active) + _LIGHT, at(paths.idx), 3)
         ls = self.lights.sample(at(paths.p), u[:, 2], u[:, :2], in_unit=True,
-                                ray=b.record(active) if self.lights.world_reads else None)
+                                ray=b.record(active) if self.lights.world_reads else None,
+                                receiver=self.lights.receivers(at(paths.prim)))
         f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility, self.shadows.lifted(at(paths.prim)))
         shift = self.shadows.shading_factor(at(paths.prim), at(bsdf.ns), ls.wi)  # the Shading Offset
         if shift is not None:
@@ -348,7 +354,8 @@ class PathTracer:
                                       None if paths.bary is None else take(paths.bary, rows),
                                       take(getattr(bsdf, "n_smooth", bsdf.ns), rows), take(paths.ng, rows),
                                       take(ls.wi, test))
-        lit, T = self.shadows.trace(o, take(ls.target, test), skip, ls.target_prim[test], passed)
+        lit, T = self.shadows.trace(o, take(ls.target, test), skip, ls.target_prim[test], passed,
+                                    None if ls.light is None else ls.light[test])
         rows = rows[lit]
         c = take(contrib, test[lit])
         c = self._clamp(c if T is None else c * T, b.total == 0, rows)
@@ -391,6 +398,9 @@ class PathTracer:
             paths.t_mis = np.where(through, vertex.t_mis[keep], 0.0)
             paths.pdf_prev = np.where(through, vertex.pdf_prev[keep], paths.pdf_prev)
             paths.no_mis = np.where(through, vertex.no_mis[keep], paths.no_mis)
+        receiver = self.lights.receivers(vertex.prim[keep])
+        if receiver is not None:  # light linking: what the ray may find is its origin's
+            paths.receiver = receiver if vertex.t_mis is None else np.where(through, vertex.receiver[keep], receiver)
         return paths
 
     def _clamp(self, c: np.ndarray, direct, rows=None) -> np.ndarray:

@@ -59,19 +59,22 @@ class PathState:
              from the last vertex that was not a transparent pass, where its MIS state was
              made (Cycles' transparent passes go on with the same ray); at a vertex, from
              there to the vertex. With it pdf_prev and no_mis stay with the path at its vertex.
+    receiver (N,) int64 or None (no light linking): the receiver set of that vertex (light
+             linking: the lights the ray may find; -1 for camera rays: all)
     specular (N,) bool: every vertex so far was specular (caustic paths; None: not kept)
     depth    bounces so far (rays traced - 1): an int, or (N,) int64 with regeneration
     bounces  Bounces (the light-path limits' counts) or None
     """
 
     __slots__ = ("idx", "o64", "o32", "d", "tmax", "skip", "prim", "mat", "p", "ng", "ns", "bary",
-                 "beta", "pdf_prev", "no_mis", "t_mis", "specular", "depth", "bounces")
+                 "beta", "pdf_prev", "no_mis", "t_mis", "receiver", "specular", "depth", "bounces")
     # Per-path arrays, compacted and joined alike (depth and bounces are handled apart), and
     # those a path carries from its ray to the vertex it arrives at.
     _ARRAYS = __slots__[:-2]
     _CARRIED = ("idx", "d", "beta", "specular")
-    _SPENT = ("o64", "o32", "tmax", "skip", "prim", "mat", "p", "ng", "ns", "bary", "pdf_prev", "no_mis", "t_mis")
-    _MIS = ("pdf_prev", "no_mis", "t_mis")  # carried to the vertex with t_mis, else spent
+    _SPENT = ("o64", "o32", "tmax", "skip", "prim", "mat", "p", "ng", "ns", "bary", "pdf_prev", "no_mis", "t_mis",
+              "receiver")
+    _MIS = ("pdf_prev", "no_mis", "t_mis", "receiver")  # carried to the vertex with t_mis, else spent
 
     def __init__(self, idx: np.ndarray, depth=0, **fields):
         for name in self.__slots__:

@@ -22,9 +22,11 @@ from ..accel import SHADOW_EPSILON, offset_origin
 from ..bsdf.closure import Closure
 from ..nodes import light_path
 from ..nodes.hits import RayState
-from ..scene import LOBE_TRANSPARENT, RAY_SHADOW
+from ..scene import LINK_ALL, LOBE_TRANSPARENT, RAY_SHADOW
 from ..vec import dot, scale, take
 from .surface import flat_normals, shading_frame
+
+ALL = int(LINK_ALL)
 
 
 def transparent_materials(materials) -> np.ndarray:
@@ -38,25 +40,45 @@ class ShadowRays:
     """The shadow rays of one render. trace() answers which segments light passes and with
     what transmittance."""
 
-    def __init__(self, scene, visibility, programs=None):
+    def __init__(self, scene, visibility, programs=None, links=None):
         """visibility: the render's RayVisibility (shadow rays see what RAY_SHADOW sees);
-        programs: the scene's MaterialPrograms (textured transparency)."""
+        programs: the scene's MaterialPrograms (textured transparency); links: the LightSet's
+        light linking (engine/lights/linking.py), or None."""
         self.scene, self.programs = scene, programs
         self.geometry_offset, self.shading_offset = terminator_offsets(scene.mesh)
         self.limit = int(scene.settings.transparent_bounces)
-        self.full = visibility.views.get(RAY_SHADOW, visibility.accel)
-        transparent = transparent_materials(scene.materials)
-        self.transparent = transparent
-        self.opaque = self.clear = None
-        if not transparent.any():
-            return
+        self.links = links if links is not None and links.shadow_linked else None
         mesh = scene.mesh
-        seen = np.ones(mesh.n_triangles, bool) if mesh.visibility is None else (mesh.visibility & RAY_SHADOW) != 0
-        see_through = transparent[mesh.material]
-        accel = visibility.accel
-        self.opaque = accel.subset(np.flatnonzero(seen & ~see_through), mesh)
-        self.clear = accel.subset(np.flatnonzero(seen & see_through), mesh)
-        self.flat_normal = flat_normals(mesh)
+        self.transparent = transparent_materials(scene.materials)
+        self.any_transparent = bool(self.transparent.any())
+        self.accel = visibility.accel
+        self.seen = None if mesh.visibility is None else (mesh.visibility & RAY_SHADOW) != 0
+        self.flat_normal = flat_normals(mesh) if self.any_transparent else None
+        self._views = {ALL: self._build(visibility.views.get(RAY_SHADOW, visibility.accel), None)}
+
+    def _build(self, full, blocks):
+        """(full, opaque, clear): the Embree views of the triangles that shadow a light, and of
+        its opaque and transparent ones (None without transparent materials); full: that view
+        if built already, else None; blocks (T,) bool or None: the light's blockers (shadow
+        linking)."""
+        mesh = self.scene.mesh
+        seen = self.seen
+        if blocks is not None:
+            seen = blocks if seen is None else seen & blocks
+        if full is None:
+            full = self.accel if seen is None else self.accel.subset(np.flatnonzero(seen), mesh)
+        if not self.any_transparent:
+            return full, None, None
+        seen = np.ones(mesh.n_triangles, bool) if seen is None else seen
+        see_through = self.transparent[mesh.material]
+        return (full, self.accel.subset(np.flatnonzero(seen & ~see_through), mesh),
+                self.accel.subset(np.flatnonzero(seen & see_through), mesh))
+
+    def _views_of(self, mask):
+        mask = int(mask)
+        if mask not in self._views:
+            self._views[mask] = self._build(None, self.links.blockers(np.uint64(mask)))
+        return self._views[mask]
 
     def origin(self, p, n_off, prim, bary=None, n_smooth=None, ng=None, wi=None):
         """(o32 (K,3) float32, skip (K,)) the shadow rays' origins at points p (K,3) on
@@ -84,39 +106,55 @@ class ShadowRays:
             return None
         return shift_cos_in(dot(ns, wi), self.shading_offset[prim])
 
-    @property
-    def any_transparent(self) -> bool:
-        return self.opaque is not None
-
-    def trace(self, o32, target, skip_prim=None, target_prim=None, passed=None):
+    def trace(self, o32, target, skip_prim=None, target_prim=None, passed=None, light=None):
         """Shadow segments from o32 (N,3) float32 (already offset) to target (N,3):
         (lit, T): lit (L,) the rows light reaches, T (L,3) its transmittance there, or None
         (all 1: no transparent surface in the scene). skip_prim (N,) the triangle each ray
         leaves, target_prim (N,) the emitter it aims at (-1 none); passed (N,) transparent
-        bounces the paths made (None: 0)."""
-        if self.opaque is None:
-            return np.flatnonzero(~self.full.occluded(o32, target, skip_prim, target_prim)), None
-        clear = np.flatnonzero(~self.opaque.occluded(o32, target, skip_prim, target_prim))
-        T = np.ones((len(clear), 3))
-        if len(clear) == 0:
-            return clear, T
+        bounces the paths made (None: 0); light (N,) the emitters aimed at (shadow linking:
+        only their blockers shadow them), or None."""
+        if self.links is None or light is None:
+            return self._trace(self._views[ALL], o32, target, skip_prim, target_prim, passed)
+        mask = self.links.block[light]
+        lit, T = [], []
+        for m in np.unique(mask).tolist():
+            rows = np.flatnonzero(mask == np.uint64(m))
+            pick = lambda a: None if a is None else a[rows]  # noqa: E731
+            r, t = self._trace(self._views_of(m), o32[rows], target[rows], pick(skip_prim), pick(target_prim),
+                               pick(passed))
+            lit.append(rows[r])
+            T.append(t)
+        lit = np.concatenate(lit)
+        order = np.argsort(lit, kind="stable")
+        return lit[order], None if T[0] is None else np.concatenate(T)[order]
+
+    def _trace(self, views, o32, target, skip_prim, target_prim, passed):
+        """trace() against one light's views (_build)."""
+        full, opaque, clear = views
+        if opaque is None:
+            return np.flatnonzero(~full.occluded(o32, target, skip_prim, target_prim)), None
+        clear_rows = np.flatnonzero(~opaque.occluded(o32, target, skip_prim, target_prim))
+        T = np.ones((len(clear_rows), 3))
+        if len(clear_rows) == 0:
+            return clear_rows, T
         target = np.asarray(target, np.float64)
-        o = np.ascontiguousarray(o32, np.float32)[clear]
-        end = target[clear]
-        skip = np.full(len(clear), -1, np.int64) if skip_prim is None else skip_prim[clear]
-        aim = None if target_prim is None else target_prim[clear]
-        left = np.full(len(clear), self.limit, np.int64)
+        o = np.ascontiguousarray(o32, np.float32)[clear_rows]
+        end = target[clear_rows]
+        skip = np.full(len(clear_rows), -1, np.int64) if skip_prim is None else skip_prim[clear_rows]
+        aim = None if target_prim is None else target_prim[clear_rows]
+        left = np.full(len(clear_rows), self.limit, np.int64)
+        passed = None if passed is None else np.asarray(passed, np.int64)[clear_rows]
         if passed is not None:
-            left = np.maximum(left - np.asarray(passed, np.int64)[clear], 0)
+            left = np.maximum(left - passed, 0)
         # Each step stops the same distance short of the target as the first segment does.
         margin = SHADOW_EPSILON * np.linalg.norm(end - o.astype(np.float64), axis=1)
-        live = np.arange(len(clear))
-        blocked = np.zeros(len(clear), bool)
+        live = np.arange(len(clear_rows))
+        blocked = np.zeros(len(clear_rows), bool)
         while len(live):
             seg = end[live] - o[live].astype(np.float64)
             length = np.linalg.norm(seg, axis=1)
             d = seg / np.where(length > 0, length, 1.0)[:, None]
-            hit = self.clear.intersect(o[live], d, np.maximum(length - margin[live], 0.0), skip[live])
+            hit = clear.intersect(o[live], d, np.maximum(length - margin[live], 0.0), skip[live])
             found = hit.prim >= 0
             if aim is not None:
                 found &= hit.prim != aim[live]
@@ -125,7 +163,7 @@ class ShadowRays:
                 break
             rows, h = live[k], hit.take(k)
             left[rows] -= 1
-            T[rows] *= self._transparency(h, take(d, k), None if passed is None else np.asarray(passed)[clear][rows])
+            T[rows] *= self._transparency(h, take(d, k), None if passed is None else passed[rows])
             dead = (left[rows] < 0) | np.all(T[rows] == 0.0, axis=1)
             blocked[rows[dead]] = True
             go = np.flatnonzero(~dead)
@@ -136,7 +174,7 @@ class ShadowRays:
             skip[rows] = h.prim[go]
             live = rows
         keep = np.flatnonzero(~blocked)
-        return clear[keep], T[keep]
+        return clear_rows[keep], T[keep]
 
     def _transparency(self, hit, d, passed) -> np.ndarray:
         """(K,3) the transparent closures' summed weight at K shadow-ray hits along d (K,3)

@@ -151,7 +151,7 @@ class PhotonIntegrator(Integrator):
         self.lambert_albedo = plain_lambert_albedo(self.scene.materials)
         self.programs = MaterialPrograms.of(self.scene.materials)
         self.flat_normal = flat_normals(self.scene.mesh)
-        self.shadows = ShadowRays(self.scene, RayVisibility(ctx.accel, self.scene.mesh), self.programs)
+        self.shadows = ShadowRays(self.scene, RayVisibility(ctx.accel, self.scene.mesh), self.programs, ctx.lights.links)
         self.stores = diffuse_materials(self.scene.materials)
         self.emissive_material = self.scene.materials.emission.mean(axis=1) > 0
         # per triangle; a miss (-1) reads the last entry, False
@@ -348,7 +348,7 @@ class PhotonIntegrator(Integrator):
         lights = self.ctx.lights
         if lights.empty:
             return
-        ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2])
+        ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2], receiver=lights.receivers(prim[x]))
         f, pdf_b = bsdf.eval(ls.wi, x)
         cos_i = np.abs(dot(ls.wi, at(ns)))
         w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + G * pdf_b, 1e-300))
@@ -356,7 +356,8 @@ class PhotonIntegrator(Integrator):
         test = np.flatnonzero(max3(contrib) > 0)
         if len(test):
             o_shadow = offset_origin(take(at(p), test), towards(take(at(ng_f), test), take(ls.wi, test)))
-            lit, T = self.shadows.trace(o_shadow, take(ls.target, test), prim[x[test]], ls.target_prim[test])
+            lit, T = self.shadows.trace(o_shadow, take(ls.target, test), prim[x[test]], ls.target_prim[test],
+                                        light=None if ls.light is None else ls.light[test])
             lit = test[lit]
             _accumulate(L, rows[lit], take(contrib, lit) if T is None else take(contrib, lit) * T)
 
@@ -418,21 +419,26 @@ class PhotonIntegrator(Integrator):
         lights, idx = self.ctx.lights, rays.idx
         not_camera = np.zeros(len(rays), bool)
         use_mis = ~rays.no_mis
+        receiver = lights.receivers(rays.skip)  # light linking: the lights linked to the points they leave
         if len(lights.hittable):
             _accumulate(out, idx, rays.beta * lights.emission_along(rays.o64, rays.d, hit.t, rays.pdf_prev, use_mis,
-                                                                    not_camera))
+                                                                    not_camera, receiver=receiver))
         missed = hit.prim < 0
         if missed.any() and lights.sees_escaped:
             r = np.flatnonzero(missed)
             _accumulate(out, idx[r], take(rays.beta, r) * lights.escaped(take(rays.d, r), rays.pdf_prev[r], use_mis[r],
-                                                                          not_camera[r]))
+                                                                          not_camera[r], receiver=None if receiver is None
+                                                                          else receiver[r]))
         emits = self.emissive_prim[hit.prim]
+        if receiver is not None and emits.any():
+            emits &= lights.links.lights(lights.light_of_prim[np.maximum(hit.prim, 0)], receiver)
         if emits.any():
             r = np.flatnonzero(emits)
             prim, pm = hit.prim[r], rays.pdf_prev[r]
             at = hit.take(r)
             cos_l = np.abs(dot(take(rays.d, r), at.ng))
-            pdf_light = lights.pdf_triangle_hit(prim, take(rays.o64, r), hit.t[r], cos_l, at.b)
+            pdf_light = lights.pdf_triangle_hit(prim, take(rays.o64, r), hit.t[r], cos_l, at.b,
+                                                None if receiver is None else receiver[r])
             w = np.where(rays.no_mis[r], 1.0, pm / np.maximum(pm + pdf_light, 1e-300))
             Le = emitted(self.scene, self.programs, self.flat_normal, take(self.scene.materials.emission,
                          self.scene.mesh.material[prim]), at, take(rays.d, r))
