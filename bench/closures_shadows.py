@@ -36,8 +36,6 @@ sys.path.insert(0, str(ROOT / "tests"))
 import _bootstrap  # noqa: E402
 
 _bootstrap.load_ember()
-import bpy  # noqa: E402
-
 import ember  # noqa: E402
 from ember.engine.metrics import EPS, rel_mse  # noqa: E402
 

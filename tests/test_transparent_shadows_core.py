@@ -5,7 +5,6 @@ transparent lobe) and their MIS combination are three unbiased estimators of one
 agree only if a transparent pass keeps the MIS state of the vertex before it (the light's pdf
 seen from there, Cycles' mis_ray_pdf and ray origin)."""
 import numpy as np
-import pytest
 
 from ember.engine.scene import LIGHT_RECT, LOBE_DIFFUSE, LOBE_TRANSPARENT, MAT_DIFFUSE, MAT_NODES, Lights, Materials, Scene, World
 from ember.engine.session import RenderSession
