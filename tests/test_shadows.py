@@ -87,3 +87,42 @@ def test_light_and_shadow_linking(tmp_path):
     e, c = _renders(sc, 16, tmp_path)
     agree(e, c, TESTS, TOL)
     assert _noise(e, c) <= NOISE_RATIO  # light a point may not see, found by its rays: fireflies
+
+
+def test_linking_export():
+    """Include, exclude and both in a receiver collection; a blocker collection; Cast Shadow
+    off: the sets each object falls in and the masks each light gets."""
+    from ember.engine.blender.export import export_scene
+    from ember.engine.lights.linking import Links
+    sc = shadow_scenes.linking(8)
+    objects = bpy.data.objects
+    key, fill = objects["Key"], objects["Fill"]
+    key.light_linking.receiver_collection.objects.link(objects["B"])  # A included, B now too ...
+    both = key.light_linking.receiver_collection
+    for ob, entry in zip(both.objects, both.collection_objects):
+        entry.light_linking.link_state = "EXCLUDE" if ob.name == "B" else "INCLUDE"  # ... but excluded
+    fill.data.use_shadow = False
+    scene, _ = export_scene(bpy.context.evaluated_depsgraph_get())
+    mesh, lights = scene.mesh, scene.lights
+    links = Links(lights, mesh, np.zeros(0, np.int64), len(lights.kind))
+    first = {name: mesh.objects[i] for i, name in enumerate(_object_names(scene))}
+    lit = {(light, name): bool(links.lights(np.array([lights.names.index(light)]),
+                                            links.receiver(np.array([first[name]])))[0])
+           for light in ("Key", "Fill") for name in ("A", "B", "floor", "shade")}
+    assert lit == {("Key", "A"): True, ("Key", "B"): False, ("Key", "floor"): False, ("Key", "shade"): False,
+                   ("Fill", "A"): False, ("Fill", "B"): True, ("Fill", "floor"): True, ("Fill", "shade"): True}
+    assert links.block[lights.names.index("Fill")] == 0  # no shadows: no blockers
+    assert links.block[lights.names.index("Key")] == np.uint64(0xFFFFFFFFFFFFFFFF)
+    glow = mesh.link_membership[_object_names(scene).index("glow")]
+    receivers = mesh.link_sets[:, 0]
+    names = _object_names(scene)
+    assert [bool(int(glow[0]) >> int(receivers[names.index(n)]) & 1) for n in ("A", "B", "floor")] == [False, True, False]
+
+
+def _object_names(scene):
+    """The exported objects' names in Mesh.objects order (each mesh's material names it here)."""
+    names = []
+    for i in range(len(scene.mesh.objects) - 1):
+        m = scene.mesh.material[scene.mesh.objects[i]]
+        names.append(scene.materials.names[m])
+    return names

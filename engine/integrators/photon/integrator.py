@@ -254,7 +254,8 @@ class PhotonIntegrator(Integrator):
             diffuse = self.stores[mat] & bsdf.has_smooth
             x = np.flatnonzero(diffuse)
             if len(x):
-                self._shade_diffuse(L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist)
+                self._shade_diffuse(L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist,
+                                    bary)
             spec = np.flatnonzero(~diffuse)
             if depth == s.max_depth or len(spec) == 0:
                 break
@@ -273,9 +274,10 @@ class PhotonIntegrator(Integrator):
             skip, tmax = prim[ok], None
         return np.ascontiguousarray(L.T)
 
-    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist):
+    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist,
+                       bary=None):
         """Direct light, caustics and final gathering at the diffuse points x (rows of idx);
-        dist: the camera paths' lengths."""
+        dist: the camera paths' lengths; bary (N,3) the points' barycentrics."""
         s = self.scene.settings
         at = gatherer(x, len(idx))
         rows, bx = idx[x], at(beta)
@@ -301,7 +303,7 @@ class PhotonIntegrator(Integrator):
             return
         if not indirect:
             self._direct_light(L, sampler.get(1 + _GROUPS * depth + _LIGHT, rows, 3), rows, x, bx, at, p, ng_f, ns,
-                               prim, bsdf, G)
+                               prim, bsdf, G, bary)
         if G == 0:
             return
         # Final gathering: G rays per point, stratified over the pixel's camera samples.
@@ -341,22 +343,29 @@ class PhotonIntegrator(Integrator):
             return ~self.ctx.accel.occluded(o, t)
         return accept
 
-    def _direct_light(self, L, u_light, rows, x, bx, at, p, ng_f, ns, prim, bsdf, G):
+    def _direct_light(self, L, u_light, rows, x, bx, at, p, ng_f, ns, prim, bsdf, G, bary=None):
         """One light sample (uniforms u_light (K,3)) at each diffuse point x (K,) (rows of L),
         weighted by the balance heuristic against G BSDF samples (Veach's multi-sample MIS;
-        G = 0: light sampling alone)."""
+        G = 0: light sampling alone); the shadow terminator's offsets as the path tracer's."""
         lights = self.ctx.lights
         if lights.empty:
             return
         ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2], receiver=lights.receivers(prim[x]))
-        f, pdf_b = bsdf.eval(ls.wi, x)
+        f, pdf_b = bsdf.eval(ls.wi, x, None, self.shadows.lifted(prim[x]))
+        shift = self.shadows.shading_factor(prim[x], at(bsdf.ns), ls.wi)
+        if shift is not None:
+            f = scale(f, shift)
         cos_i = np.abs(dot(ls.wi, at(ns)))
         w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + G * pdf_b, 1e-300))
         contrib = bx * f * scale(ls.Le, np.divide(cos_i * w, ls.pdf, out=np.zeros(len(x)), where=ls.valid))
         test = np.flatnonzero(max3(contrib) > 0)
         if len(test):
-            o_shadow = offset_origin(take(at(p), test), towards(take(at(ng_f), test), take(ls.wi, test)))
-            lit, T = self.shadows.trace(o_shadow, take(ls.target, test), prim[x[test]], ls.target_prim[test],
+            t = x[test]
+            o_shadow, skip = self.shadows.origin(take(at(p), test), towards(take(at(ng_f), test), take(ls.wi, test)),
+                                                 prim[t], None if bary is None else take(bary, t),
+                                                 take(getattr(bsdf, "n_smooth", bsdf.ns), t), take(at(ng_f), test),
+                                                 take(ls.wi, test))
+            lit, T = self.shadows.trace(o_shadow, take(ls.target, test), skip, ls.target_prim[test],
                                         light=None if ls.light is None else ls.light[test])
             lit = test[lit]
             _accumulate(L, rows[lit], take(contrib, lit) if T is None else take(contrib, lit) * T)
@@ -367,6 +376,9 @@ class PhotonIntegrator(Integrator):
         emission False: none of the emission the ray finds first (its light is sampled apart)."""
         u = sampler.get(0, None, 3)
         bs = _sample_rows(bsdf, pts, u)
+        shift = self.shadows.shading_factor(prim[pts], take(bsdf.ns, pts), bs.wi)  # the Shading Offset
+        if shift is not None:
+            bs.weight = scale(bs.weight, shift)
         g = np.flatnonzero(bs.valid)
         d = take(bs.wi, g)
         o64 = take(p, pts[g])
