@@ -16,7 +16,8 @@ sphere, a blocker collection, an emissive card linked to one sphere). For each:
 
 --cpu-base: a checkout of Ember before this work (git archive main | tar -x -C /tmp/base); the
 script then appends bench/cpu_ab.py's CPU time per path on the Cornell box (no transparency,
-no linking, flat-shaded) of that checkout against this one.
+no linking, flat-shaded) of that checkout against this one. --before: such a checkout, whose
+table (this script and tests/shadow_scenes.py copied into it, run there) is added beside.
 """
 from __future__ import annotations
 
@@ -83,6 +84,19 @@ def cpu_ab(base: str) -> str:
     return out.stdout + (out.stderr[-2000:] if out.returncode else "")
 
 
+def before(root: str, args) -> str:
+    """The table of the checkout at root (the same measurement with its code)."""
+    import shutil
+    for rel in ("bench/closures_shadows.py", "tests/shadow_scenes.py"):
+        shutil.copy(ROOT / rel, pathlib.Path(root) / rel)
+    with tempfile.TemporaryDirectory() as d:
+        out = pathlib.Path(d) / "before.md"
+        subprocess.run([sys.executable, str(pathlib.Path(root) / "bench" / "closures_shadows.py"), "--size",
+                        str(args.size), "--samples", str(args.samples), "--seeds", str(args.seeds), "--reference",
+                        str(args.reference), "--out", str(out)], cwd=root, capture_output=True, check=True)
+        return "\n".join(line for line in out.read_text().splitlines() if line.startswith("|"))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=32)
@@ -90,6 +104,7 @@ def main(argv=None):
     ap.add_argument("--seeds", type=int, default=8)
     ap.add_argument("--reference", type=int, default=4096)
     ap.add_argument("--cpu-base", default=None)
+    ap.add_argument("--before", default=None)
     ap.add_argument("--out", default=str(OUT))
     args = ap.parse_args(argv)
     ember.register()
@@ -113,6 +128,9 @@ def main(argv=None):
         met = abs(r["bias"]) <= 0.01 and ratio <= 1.5
         lines.append(f"| {name} | {100 * r['bias']:+.2f} % +- {100 * r['se']:.2f} | {100 * r['cycles_bias']:+.2f} % | "
                      f"{r['rel_e']:.5f} | {r['rel_c']:.5f} | {ratio:.2f} | {'met' if met else 'NOT met'} |")
+    if args.before:
+        lines += ["", f"## Before this work (the checkout at {args.before}, same measurement)", "",
+                  before(args.before, args)]
     if args.cpu_base:
         lines += ["", "## CPU per path without transparency or linking", "",
                   f"`bench/cpu_ab.py {args.cpu_base} . --rounds 6` (Cornell box; the first root is the code before "
