@@ -25,7 +25,7 @@ import numpy as np
 from ..vec import dot, gatherer, max3, normalize, scale, take
 
 from .. import camera as camera_mod
-from ..accel import Accel
+from ..accel import Accel, offset_origin
 from ..bsdf.closure import LABEL_TRANSPARENT
 from ..bsdf.fast_path import make_closure, plain_lambert_albedo
 from ..nodes import light_path as lp
@@ -332,11 +332,12 @@ class PathTracer:
         u = sampler.get(1 + _GROUPS * rows_of(paths.depth, active) + _LIGHT, at(paths.idx), 3)
         ls = self.lights.sample(at(paths.p), u[:, 2], u[:, :2], in_unit=True,
                                 ray=b.record(active) if self.lights.world_reads else None,
-                                receiver=self.lights.receivers(at(paths.prim)))
-        f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility, self.shadows.lifted(at(paths.prim)))
-        shift = self.shadows.shading_factor(at(paths.prim), at(bsdf.ns), ls.wi)  # the Shading Offset
-        if shift is not None:
-            f = scale(f, shift)
+                                receiver=self.lights.receivers(at(paths.prim)) if self.lights.light_linked else None)
+        shadows = self.shadows
+        f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility,
+                             None if shadows.geometry_offset is None else shadows.lifted(at(paths.prim)))
+        if shadows.shading_offset is not None:  # the terminator's Shading Offset
+            f = scale(f, shadows.shading_factor(at(paths.prim), at(bsdf.ns), ls.wi))
         cos_i = np.abs(dot(ls.wi, at(bsdf.ns)))  # ns: may be perturbed (normal maps)
         pdf_b_mis = at(q) * pdf_b if self.strategy.mis else 0.0
         w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_b_mis, 1e-300))
@@ -350,10 +351,13 @@ class PathTracer:
         n_off = take(paths.ng, rows) if reflects and self.shadows.geometry_offset is None else \
             towards(take(paths.ng, rows), take(ls.wi, test))
         passed = None if b.counts is None or not self.shadows.any_transparent else b.counts[rows, LABEL_TRANSPARENT]
-        o, skip = self.shadows.origin(take(paths.p, rows), n_off, paths.prim[rows],
-                                      None if paths.bary is None else take(paths.bary, rows),
-                                      take(getattr(bsdf, "n_smooth", bsdf.ns), rows), take(paths.ng, rows),
-                                      take(ls.wi, test))
+        if self.shadows.geometry_offset is None:
+            o, skip = offset_origin(take(paths.p, rows), n_off), paths.prim[rows]
+        else:  # the terminator's Geometry Offset
+            o, skip = self.shadows.origin(take(paths.p, rows), n_off, paths.prim[rows],
+                                          None if paths.bary is None else take(paths.bary, rows),
+                                          take(getattr(bsdf, "n_smooth", bsdf.ns), rows), take(paths.ng, rows),
+                                          take(ls.wi, test))
         lit, T = self.shadows.trace(o, take(ls.target, test), skip, ls.target_prim[test], passed,
                                     None if ls.light is None else ls.light[test])
         rows = rows[lit]
@@ -375,9 +379,8 @@ class PathTracer:
         else:
             u = sampler.get(base + _BSDF, paths.idx, 4)
             bs, u_rr = bsdf.sample(u[:, :2], u[:, 2]), u[:, 3]
-        shift = self.shadows.shading_factor(paths.prim, bsdf.ns, bs.wi)  # the Shading Offset
-        if shift is not None:
-            bs.weight = scale(bs.weight, shift)
+        if self.shadows.shading_offset is not None:  # the terminator's Shading Offset
+            bs.weight = scale(bs.weight, self.shadows.shading_factor(paths.prim, bsdf.ns, bs.wi))
         if tally and paths.depth == 0:
             tally.first_bounce(paths.idx, bsdf, bs)
         survive = bs.valid & (u_rr < q)
@@ -398,8 +401,8 @@ class PathTracer:
             paths.t_mis = np.where(through, vertex.t_mis[keep], 0.0)
             paths.pdf_prev = np.where(through, vertex.pdf_prev[keep], paths.pdf_prev)
             paths.no_mis = np.where(through, vertex.no_mis[keep], paths.no_mis)
-        receiver = self.lights.receivers(vertex.prim[keep])
-        if receiver is not None:  # light linking: what the ray may find is its origin's
+        if self.lights.light_linked:  # light linking: what the ray may find is its origin's
+            receiver = self.lights.receivers(vertex.prim[keep])
             paths.receiver = receiver if vertex.t_mis is None else np.where(through, vertex.receiver[keep], receiver)
         return paths
 

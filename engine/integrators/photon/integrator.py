@@ -350,7 +350,8 @@ class PhotonIntegrator(Integrator):
         lights = self.ctx.lights
         if lights.empty:
             return
-        ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2], receiver=lights.receivers(prim[x]))
+        ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2],
+                           receiver=lights.receivers(prim[x]) if lights.light_linked else None)
         f, pdf_b = bsdf.eval(ls.wi, x, None, self.shadows.lifted(prim[x]))
         shift = self.shadows.shading_factor(prim[x], at(bsdf.ns), ls.wi)
         if shift is not None:
