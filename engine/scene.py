@@ -70,6 +70,10 @@ RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMIT, RAY_SHADOW = 1, 2, 4, 8, 16
 RAY_ALL = 31
 HOLDOUT = 32
 
+# Light and shadow linking (Cycles' light sets): an emitter's 64-bit masks of the receiver and
+# blocker sets it is linked to; LINK_ALL: every set (no linking).
+LINK_ALL = 0xFFFFFFFFFFFFFFFF
+
 # Cycles' attribute types (Mesh.attributes' type codes index this).
 ATTRIBUTE_TYPES = ("float", "float2", "float3", "float4", "rgba")
 
@@ -110,6 +114,13 @@ class Mesh:
     (RGBA), Pass Index and Cycles' random number; instancer (B,5) float64: the instancer's
     generated coordinates (3) and UV (2) at an instance (zeros for other objects);
     material_pass_index (M,) float64: each material's Pass Index.
+
+    terminator (B,2) float32 per object (with `objects`): Cycles' shadow terminator Geometry
+    Offset and Shading Offset (Object Properties > Shading), as Blender shows them; None: both 0.
+    link_sets (B,2) uint8 per object: its receiver set and blocker set (light and shadow
+    linking, 0: in no linking collection); link_membership (B,2) uint64: as an emitter (an
+    emissive object), the masks of receiver sets it lights and blocker sets that shadow it
+    (LINK_ALL: all); both None without linking.
     """
 
     vertices: np.ndarray
@@ -126,6 +137,9 @@ class Mesh:
     object_info: np.ndarray = None
     instancer: np.ndarray = None
     material_pass_index: np.ndarray = None
+    terminator: np.ndarray = None
+    link_sets: np.ndarray = None
+    link_membership: np.ndarray = None
 
     def __post_init__(self):
         if self.uvs is None:
@@ -383,6 +397,8 @@ class Lights:
     which engine/lights/light_shader.py multiplies by the program's value per sample and hit.
     matrix (L,3,3): the light object's world matrix's linear part (columns its x, y, z axes,
     scale included); with `position`, the object transform a light's shader reads.
+    links (L,2) uint64: the masks of the receiver sets each light lights and of the blocker
+    sets that shadow it (light and shadow linking; Mesh.link_sets), or None: all of them.
     """
 
     kind: np.ndarray
@@ -400,6 +416,7 @@ class Lights:
     ray_visibility: np.ndarray = None
     graphs: tuple = ()
     matrix: np.ndarray = None
+    links: np.ndarray = None
 
     def __post_init__(self):
         if self.ray_visibility is None:
@@ -432,6 +449,8 @@ class Lights:
             graphs=tuple(r.get("graph") for r in rows) if any(r.get("graph") is not None for r in rows) else (),
             matrix=np.array([r["matrix"] if "matrix" in r else np.transpose(r.get("frame", eye)) for r in rows],
                             np.float64).reshape(n, 3, 3),
+            links=np.array([r.get("links", (LINK_ALL, LINK_ALL)) for r in rows], np.uint64).reshape(n, 2)
+            if any("links" in r for r in rows) else None,
         )
 
     def __len__(self) -> int:

@@ -56,7 +56,3 @@ class RayVisibility:
             for name in ("prim", "t", "_b1", "_b2"):
                 getattr(out, name)[rows] = getattr(h, name)
         return out
-
-    def occluded(self, o, target, skip_prim=None, target_prim=None) -> np.ndarray:
-        """Accel.occluded against the triangles that cast shadows."""
-        return self.views.get(RAY_SHADOW, self.accel).occluded(o, target, skip_prim, target_prim)

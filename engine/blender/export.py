@@ -15,6 +15,7 @@ from ..errors import Cancelled, EmberError
 from ..scene import HOLDOUT, RAY_ALL, Lights, Scene, recentred, scene_origin  # noqa: F401 (recentred: tests use it here)
 from .export_camera import export_camera
 from .export_light import export_light, ray_visibility
+from .export_linking import LinkSets
 from .export_material import MaterialTable
 from .export_mesh import MeshCollector
 from .export_settings import export_settings
@@ -71,7 +72,9 @@ def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
     check()
 
     materials = MaterialTable(warn, depsgraph.scene)
-    meshes = MeshCollector(materials, warn, getattr(depsgraph.view_layer_eval, "material_override", None), protos)
+    links = LinkSets(depsgraph.scene, warn)
+    meshes = MeshCollector(materials, warn, getattr(depsgraph.view_layer_eval, "material_override", None), protos,
+                           links if links.active else None)
     light_rows = []
     visibility = {}  # original object pointer -> render it?
     report("Export: objects")
@@ -92,7 +95,7 @@ def export_scene(depsgraph, *, overrides: dict | None = None, test_break=None,
             if flags & RAY_ALL:
                 meshes.add(ob, inst.matrix_world.copy(), flags, inst)
         elif kind == "LIGHT":
-            row = export_light(ob, inst.matrix_world.copy(), warn)
+            row = export_light(ob, inst.matrix_world.copy(), warn, links if links.active else None)
             if row is not None:
                 light_rows.append(row)
         elif kind in _UNRENDERED_TYPES:

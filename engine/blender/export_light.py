@@ -22,7 +22,7 @@ Confirmed in blender/blender (5.x):
   multiplies the shader's emission into strength x eval_fac (light/sample.h
   light_sample_shader_eval); a shader that varies is kept as the light's graph and evaluated
   per light sample and hit.
-Approximations: area spread, per-ray-type visibility, shadow toggle, photon emission of lights
+Approximations: area spread, per-ray-type visibility, photon emission of lights
 whose shader varies, and non-uniformly scaled spot cones are not modelled (warned).
 """
 from __future__ import annotations
@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from ..scene import (LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY,
+from ..scene import (LINK_ALL, LIGHT_DISK, LIGHT_POINT, LIGHT_RECT, LIGHT_SPOT, LIGHT_SUN, RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY,
                      RAY_SHADOW, RAY_TRANSMIT)
 from ..nodes.closures import closures
 from ..nodes.program import compile
@@ -164,14 +164,19 @@ def light_row(light, name: str, matrix_world: np.ndarray, visible_camera: bool, 
     return row
 
 
-def export_light(ob, matrix_world, warn) -> dict | None:
-    """Row for an evaluated LIGHT object instance (None if it contributes nothing)."""
+def export_light(ob, matrix_world, warn, links=None) -> dict | None:
+    """Row for an evaluated LIGHT object instance (None if it contributes nothing); links:
+    the scene's LinkSets (export_linking.py), or None. A light without shadows is shadowed by
+    no set of objects (Cycles casts no shadow ray for it)."""
     light = ob.data
-    if not getattr(light, "use_shadow", True):
-        _unsupported(warn, "Lights without shadows are not supported; they cast shadows", ob.name)
     row = light_row(light, ob.name, matrix_world, getattr(ob, "visible_camera", True), warn)
     if row is not None:
         row["ray_visibility"] = ray_visibility(ob)
+        receive, block = links.masks(ob) if links is not None else (None, None)
+        if not getattr(light, "use_shadow", True):
+            block = 0
+        if receive is not None or block is not None:
+            row["links"] = (LINK_ALL if receive is None else int(receive), LINK_ALL if block is None else int(block))
     return row
 
 

@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import EmberError
 from ..nodes.hash import uint_to_float
 from ..nodes.mesh_attributes import object_random
-from ..scene import ATTRIBUTE_TYPES, RAY_ALL, Mesh
+from ..scene import ATTRIBUTE_TYPES, LINK_ALL, RAY_ALL, Mesh
 from .export_attributes import MeshAttributes, object_attribute, triangle_values
 
 # A triangle is degenerate when |e1 x e2| <= EPS_SIN * |e1| |e2| (collinear in float32).
@@ -290,6 +290,21 @@ class Needs(NamedTuple):
         return bool(self.objects) or self.info
 
 
+def _link_fields(links) -> dict:
+    """Mesh.link_sets and link_membership from the plan entries' (k,4) LinkSets rows."""
+    if not links:
+        return {}
+    rows = np.concatenate(links)
+    return dict(link_sets=rows[:, :2].astype(np.uint8), link_membership=np.ascontiguousarray(rows[:, 2:]))
+
+
+def _terminator(ob) -> tuple:
+    """The object's shadow terminator Geometry Offset and Shading Offset (Cycles reads them
+    from the object, instances from their object)."""
+    return (float(getattr(ob, "shadow_terminator_geometry_offset", 0.0)),
+            float(getattr(ob, "shadow_terminator_shading_offset", 0.0)))
+
+
 def _object_record(ob, inst, needs: Needs):
     """(object_info (6,) or None, {attribute name: RGBA}) of an instance, as Cycles' object sync
     sets them (blender/object.cpp): Color, Pass Index and the random number (the depsgraph
@@ -318,7 +333,7 @@ def _object_record(ob, inst, needs: Needs):
 class MeshCollector:
     """Fed with every visible MESH instance during the depsgraph walk, then `build()`."""
 
-    def __init__(self, materials, warn, material_override=None, protos: dict | None = None):
+    def __init__(self, materials, warn, material_override=None, protos: dict | None = None, links=None):
         """protos: extracted meshes by evaluated mesh pointer, from an earlier export of the
         same geometry (the viewport's), added to here. materials: the MaterialTable; its
         `reads(i)` (the fields material i's node programs read, if it has that method) decides
@@ -329,6 +344,9 @@ class MeshCollector:
         self._protos: dict[int, _Proto | None] = {} if protos is None else protos
         self._groups: dict[tuple, list] = {}
         self._records: dict[tuple, list] = {}  # per group, per instance: _object_record or None
+        self._terminator: dict[tuple, list] = {}  # per group, per instance: _terminator(ob)
+        self._linking = links  # export_linking.LinkSets, or None: no light linking
+        self._links: dict[tuple, list] = {}  # per group, per instance: LinkSets.of_object(ob)
         self._slot_cache: dict[tuple, tuple] = {}
         self._needs_cache: dict[tuple, Needs] = {}
         self._needs = Needs()  # everything any material read so far
@@ -389,6 +407,9 @@ class MeshCollector:
             self._records[group] = []
         lst.append(matrix_world)
         self._records[group].append(_object_record(ob, inst, needs) if needs.per_object else None)
+        self._terminator.setdefault(group, []).append(_terminator(ob))
+        if self._linking is not None:
+            self._links.setdefault(group, []).append(self._linking.of_object(ob))
 
     def bounds(self) -> np.ndarray:
         """(2,3) float64 world bounding box (min, max) of every collected instance, from the
@@ -422,12 +443,17 @@ class MeshCollector:
         shift = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
         plan = []  # (proto, material lookup, visibility, matrices (k,4,4), det (k,))
         placed_records = []  # per plan entry, per instance: _object_record or None
+        terminator = []  # per plan entry: (k,2) its instances' shadow terminator offsets
+        links = []  # per plan entry: (k,4) its instances' LinkSets.of_object
         n_vert = n_tri = 0
         dropped = 0
         nonfinite, bad_transform = [], []  # object names
         for group, matrices in self._groups.items():
             data_key, mats, vis = group
             records = self._records.get(group) or [None] * len(matrices)
+            offsets = np.array(self._terminator.get(group) or [(0.0, 0.0)] * len(matrices), np.float32).reshape(-1, 2)
+            linked = np.array(self._links.get(group) or [(0, 0, LINK_ALL, LINK_ALL)] * len(matrices),
+                              np.uint64).reshape(-1, 4)
             proto = self._protos[data_key]
             M = np.array(matrices, np.float64).reshape(-1, 4, 4)
             det = np.linalg.det(M[:, :3, :3])
@@ -442,10 +468,13 @@ class MeshCollector:
                 dropped += len(proto.triangles) * int(np.count_nonzero(~ok & finite))  # scaled to 0
                 M, det = M[ok], det[ok]
                 records = [r for r, keep in zip(records, ok) if keep]
+                offsets, linked = offsets[ok], linked[ok]
             if len(M) == 0 or len(proto.triangles) == 0:
                 continue
             plan.append((proto, mats, vis, M, det))
             placed_records.append(records)
+            terminator.append(offsets)
+            links.append(linked)
             n_vert += len(M) * len(proto.positions)
             n_tri += len(M) * len(proto.triangles)
 
@@ -542,6 +571,8 @@ class MeshCollector:
                     objects=np.array(starts + [n_tri], np.int64) if starts else None,
                     object_matrix=np.concatenate(object_matrix) if starts else None,
                     object_texspace=np.concatenate(object_texspace) if starts else None,
+                    terminator=np.concatenate(terminator) if starts else None,
+                    **_link_fields(links if starts and self._linking is not None else None),
                     **self._program_data(plan, placed_records, n_tri))
         if placed is not None:
             placed.update(mesh=mesh, groups=now)

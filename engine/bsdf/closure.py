@@ -30,7 +30,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import sampling, textures
-from ..scene import Scene
+from ..scene import LOBE_TRANSPARENT, Scene
 from ..vec import dot, gatherer, max3, normalize, scale, take
 from .lobes import LOBES, NEEDS_SIDE, RAYS, REFLECTION_CLASS, STRAIGHT, TRANSMISSION_CLASS, inputs
 from .lobes.base import (CLASS_DIFFUSE, LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT, Params,
@@ -313,14 +313,17 @@ class Closure:
         diffuse = REFLECTION_CLASS[self.pair_kind[pairs]] == CLASS_DIFFUSE  # Cycles' CLOSURE_IS_BSDF_DIFFUSE
         return np.where(diffuse, diffuse_factor[owner], factor[owner])
 
-    def _mixture(self, rows: np.ndarray, wi: np.ndarray, visible=None):
+    def _mixture(self, rows: np.ndarray, wi: np.ndarray, visible=None, shading_side=None):
         """f (K,3) and mixture pdf (K,) of the points `rows` (K,) for world directions wi (K,3);
-        visible (K,) RAY_* bits of a light: lobes it does not light are left out."""
+        visible (K,) RAY_* bits of a light: lobes it does not light are left out;
+        shading_side (K,) bool or None: see eval."""
         k = len(rows)
         at = gatherer(rows, self.n)
         wi_local = _to_local(wi, at(self.t), at(self.b), at(self.ns))
         # Reflection must stay on the geometric normal's side, refraction must cross it.
         agree = (dot(wi, at(self.ng)) > 0) == (wi_local[:, 2] > 0)
+        if shading_side is not None:
+            agree |= shading_side
         pairs, owner = self._pairs_of(rows)
         if visible is not None:
             lit = (RAYS[self.pair_kind[pairs]] & visible[owner]) != 0
@@ -338,10 +341,20 @@ class Closure:
             f, pdf = _sum_by(owner, f_pair, k), np.bincount(owner, pdf_pair, minlength=k)
         return scale(f, agree), np.where(agree, pdf, 0.0)
 
-    def eval(self, wi: np.ndarray, rows: np.ndarray, visible=None):
+    def eval(self, wi: np.ndarray, rows: np.ndarray, visible=None, shading_side=None):
         """f (K,3) and solid-angle pdf (K,) at the points `rows` (K,) for directions wi (K,3);
-        visible (K,) RAY_* bits or None: only lobes of those kinds (a light's visibility)."""
-        return self._mixture(rows, wi, visible)
+        visible (K,) RAY_* bits or None: only lobes of those kinds (a light's visibility);
+        shading_side (K,) bool or None: where True, the shading normal alone decides between
+        reflection and transmission (Cycles' convention: light leaks around the terminator and
+        the shadow ray, lifted by the terminator offset, decides), else the geometric normal
+        must agree."""
+        return self._mixture(rows, wi, visible, shading_side)
+
+    def transparency(self) -> np.ndarray:
+        """(N,3) the summed weight of the transparent lobes at each point: what a shadow ray
+        keeps passing it (Cycles' surface_shader_transparency)."""
+        t = np.where((self.pair_kind == LOBE_TRANSPARENT)[:, None], self.pair_estimate, 0.0)
+        return t if self.single else _sum_by(self.pair_point, t, self.n)
 
     # --- render passes: the closure split by lobe class (diffuse, glossy, transmission) -------
     def eval_by_class(self, wi: np.ndarray, rows: np.ndarray) -> np.ndarray:

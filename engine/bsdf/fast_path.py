@@ -52,9 +52,10 @@ class LambertClosure:
         self.has_smooth = max3(albedo) > 0
         self.t, self.b = sampling.frame_from_z(ns) if frame is None else frame
 
-    def eval(self, wi: np.ndarray, rows: np.ndarray, visible=None):
+    def eval(self, wi: np.ndarray, rows: np.ndarray, visible=None, shading_side=None):
         at = gatherer(rows, len(self.ns))
-        cos_i = np.where(dot(wi, at(self.ng)) > 0, dot(wi, at(self.ns)), 0.0)
+        above = dot(wi, at(self.ng)) > 0
+        cos_i = np.where(above if shading_side is None else above | shading_side, dot(wi, at(self.ns)), 0.0)
         if visible is not None:
             cos_i = np.where((visible & RAY_DIFFUSE) != 0, cos_i, 0.0)
         return diffuse.eval(at(self.albedo), cos_i), diffuse.pdf(cos_i)
@@ -109,11 +110,12 @@ class _MixedClosure(Closure):
         sel = np.flatnonzero(pos >= 0)
         return sel, pos[sel]
 
-    def eval(self, wi: np.ndarray, rows: np.ndarray, visible=None):
-        f, p = super().eval(wi, rows, visible)
+    def eval(self, wi: np.ndarray, rows: np.ndarray, visible=None, shading_side=None):
+        f, p = super().eval(wi, rows, visible, shading_side)
         sel, pos = self._plain_of(rows)
         if len(sel):
-            f[sel], p[sel] = self.lambert.eval(take(wi, sel), pos, None if visible is None else visible[sel])
+            f[sel], p[sel] = self.lambert.eval(take(wi, sel), pos, None if visible is None else visible[sel],
+                                               None if shading_side is None else shading_side[sel])
         return f, p
 
     def eval_by_class(self, wi: np.ndarray, rows: np.ndarray) -> np.ndarray:

@@ -42,6 +42,7 @@ from .base import Integrator, Stage
 from .light_passes import LightTally
 from .path_options import CAMERA_PATHS, Clamp, ClosureOptions, Gather, LightPaths, Strategy
 from .path_state import PathState, rows_of
+from .shadows import ShadowRays
 from .surface import emitted, flat_frame_rows, flat_frames, flat_normals, shading_frame, towards
 from ..layout import BatchLayout
 
@@ -80,6 +81,7 @@ class PathTracer:
         # Barycentrics serve smooth normals and the general closure (textures) only.
         self.needs_bary = self.flat_normal is None or bool(np.isnan(self.lambert_albedo).any())
         self.visibility = RayVisibility(accel, scene.mesh)  # objects hidden from some rays
+        self.shadows = ShadowRays(scene, self.visibility, self.programs, lights.links)  # transparency, linking
         st = scene.settings
         self.strategy = Strategy.of(st.strategy)
         self.clamp = Clamp.of(st)  # None: off
@@ -164,6 +166,8 @@ class PathTracer:
             paths.beta[paths.tmax <= 0.0] = 0.0
         paths.specular = np.ones(n, bool) if gather.caustic_ends is not None else None
         paths.depth = np.zeros(n, np.int64) if per_path else 0
+        paths.t_mis = np.zeros(n) if self.light_paths.any_transparent else None
+        paths.receiver = np.full(n, -1, np.int64) if self.lights.light_linked else None
         paths.bounces = self.light_paths.start(n, max_depth, per_path)
         if self.track:
             self._track(paths, gather)
@@ -214,8 +218,15 @@ class PathTracer:
         camera_ray = kind == RAY_CAMERA if kind is not None else np.broadcast_to(depth == 0, len(paths))
         direct = b.total <= 1 if self.clamp is not None else None
         use_mis = ~paths.no_mis
+        # After transparent passes the MIS state is the last vertex's, o_mis, t_mis behind the origin.
+        o_mis, t_mis = paths.o64, None
+        if paths.t_mis is not None and paths.t_mis.any():
+            t_mis = paths.t_mis
+            o_mis = paths.o64 - scale(paths.d, t_mis)
         if len(lights.hittable):
-            c = paths.beta * lights.emission_along(paths.o64, paths.d, hit.t, paths.pdf_prev, use_mis, camera_ray, kind)
+            c = paths.beta * lights.emission_along(o_mis, paths.d, hit.t if t_mis is None else hit.t + t_mis,
+                                                   paths.pdf_prev, use_mis, camera_ray, kind, tmin=t_mis,
+                                                   receiver=paths.receiver)
             if lit is not None:
                 c[~lit] = 0.0
             self._add(L, idx, self._clamp(c, direct), tally, depth)
@@ -224,11 +235,14 @@ class PathTracer:
             r = np.flatnonzero(missed if lit is None else missed & lit)
             c = take(paths.beta, r) * lights.escaped(take(paths.d, r), paths.pdf_prev[r], use_mis[r], camera_ray[r],
                                                      None if kind is None else kind[r],
-                                                     b.record(r) if lights.world_reads else None)
+                                                     b.record(r) if lights.world_reads else None,
+                                                     None if paths.receiver is None else paths.receiver[r])
             self._add(L, idx[r], self._clamp(c, direct, r), tally, depth, escaped=True)
         emits = self.emissive_prim[hit.prim]
         if lit is not None:
             emits &= lit
+        if paths.receiver is not None and emits.any():  # light linking: lights linked to the ray's origin
+            emits &= lights.links.lights(lights.light_of_prim[np.maximum(hit.prim, 0)], paths.receiver)
         if emits.any():
             r = np.flatnonzero(emits)
             prim, pdf_prev = hit.prim[r], paths.pdf_prev[r]
@@ -238,7 +252,8 @@ class PathTracer:
             at = hit.take(r)
             Le = emitted(self.scene, self.programs, self.flat_normal, Le, at, take(paths.d, r), ray)
             cos_l = np.abs(dot(take(paths.d, r), at.ng))
-            pdf_light = lights.pdf_triangle_hit(prim, take(paths.o64, r), hit.t[r], cos_l, at.b)
+            pdf_light = lights.pdf_triangle_hit(prim, take(o_mis, r), hit.t[r] if t_mis is None else hit.t[r] + t_mis[r],
+                                                cos_l, at.b, None if paths.receiver is None else paths.receiver[r])
             w = np.where(paths.no_mis[r], 1.0, pdf_prev / np.maximum(pdf_prev + pdf_light, 1e-300))
             self._add(L, idx[r], self._clamp(take(paths.beta, r) * scale(Le, w), b.total <= 1, r), tally, depth)
 
@@ -318,8 +333,13 @@ class PathTracer:
         at = gatherer(active, m)
         u = sampler.get(1 + _GROUPS * rows_of(paths.depth, active) + _LIGHT, at(paths.idx), 3)
         ls = self.lights.sample(at(paths.p), u[:, 2], u[:, :2], in_unit=True,
-                                ray=b.record(active) if self.lights.world_reads else None)
-        f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility)
+                                ray=b.record(active) if self.lights.world_reads else None,
+                                receiver=self.lights.receivers(at(paths.prim)) if self.lights.light_linked else None)
+        shadows = self.shadows
+        f, pdf_b = bsdf.eval(ls.wi, active, ls.visibility,
+                             None if shadows.geometry_offset is None else shadows.lifted(at(paths.prim)))
+        if shadows.shading_offset is not None:  # the terminator's Shading Offset
+            f = scale(f, shadows.shading_factor(at(paths.prim), at(bsdf.ns), ls.wi))
         cos_i = np.abs(dot(ls.wi, at(bsdf.ns)))  # ns: may be perturbed (normal maps)
         pdf_b_mis = at(q) * pdf_b if self.strategy.mis else 0.0
         w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_b_mis, 1e-300))
@@ -330,12 +350,21 @@ class PathTracer:
         if len(test) == 0:
             return
         rows = active[test]
-        n_off = take(paths.ng, rows) if reflects else towards(take(paths.ng, rows), take(ls.wi, test))
-        blocked = self.visibility.occluded(offset_origin(take(paths.p, rows), n_off), take(ls.target, test),
-                                           paths.prim[rows], ls.target_prim[test])
-        lit = np.flatnonzero(~blocked)
+        n_off = take(paths.ng, rows) if reflects and self.shadows.geometry_offset is None else \
+            towards(take(paths.ng, rows), take(ls.wi, test))
+        passed = None if b.counts is None or not self.shadows.any_transparent else b.counts[rows, LABEL_TRANSPARENT]
+        if self.shadows.geometry_offset is None:
+            o, skip = offset_origin(take(paths.p, rows), n_off), paths.prim[rows]
+        else:  # the terminator's Geometry Offset
+            o, skip = self.shadows.origin(take(paths.p, rows), n_off, paths.prim[rows],
+                                          None if paths.bary is None else take(paths.bary, rows),
+                                          take(getattr(bsdf, "n_smooth", bsdf.ns), rows), take(paths.ng, rows),
+                                          take(ls.wi, test))
+        lit, T = self.shadows.trace(o, take(ls.target, test), skip, ls.target_prim[test], passed,
+                                    None if ls.light is None else ls.light[test])
         rows = rows[lit]
-        c = self._clamp(take(contrib, test[lit]), b.total == 0, rows)
+        c = take(contrib, test[lit])
+        c = self._clamp(c if T is None else c * T, b.total == 0, rows)
         _accumulate(L, paths.idx[rows], c)
         if tally:
             f_cls = bsdf.eval_by_class(take(ls.wi, test[lit]), rows) if paths.depth == 0 else None
@@ -352,6 +381,8 @@ class PathTracer:
         else:
             u = sampler.get(base + _BSDF, paths.idx, 4)
             bs, u_rr = bsdf.sample(u[:, :2], u[:, 2]), u[:, 3]
+        if self.shadows.shading_offset is not None:  # the terminator's Shading Offset
+            bs.weight = scale(bs.weight, self.shadows.shading_factor(paths.prim, bsdf.ns, bs.wi))
         if tally and paths.depth == 0:
             tally.first_bounce(paths.idx, bsdf, bs)
         survive = bs.valid & (u_rr < q)
@@ -360,12 +391,21 @@ class PathTracer:
         beta = paths.beta * scale(bs.weight, np.divide(1.0, q, out=np.zeros(m), where=survive))
         survive &= max3(beta) > 0
         keep = np.flatnonzero(survive)
-        paths = paths.leave(keep, take(bs.wi, keep), take(beta, keep), reflects)
+        vertex = paths
+        paths = vertex.leave(keep, take(bs.wi, keep), take(beta, keep), reflects)
         paths.bounces = paths.bounces.count(bs, keep, self.light_paths.per_label)
         # Strategy switches: pdf_prev 0 makes emission found after a non-delta bounce weigh 0
         # ("light" alone); no_mis makes it weigh 1 (after delta bounces, or "bsdf" alone).
         paths.pdf_prev = (q * bs.pdf)[keep] if self.strategy.bsdf_hits else np.zeros(len(keep))
         paths.no_mis = bs.delta[keep] | (not self.strategy.nee)
+        if vertex.t_mis is not None:  # a transparent pass keeps the MIS state of the vertex before (Cycles)
+            through = bs.label[keep] == LABEL_TRANSPARENT
+            paths.t_mis = np.where(through, vertex.t_mis[keep], 0.0)
+            paths.pdf_prev = np.where(through, vertex.pdf_prev[keep], paths.pdf_prev)
+            paths.no_mis = np.where(through, vertex.no_mis[keep], paths.no_mis)
+        if self.lights.light_linked:  # light linking: what the ray may find is its origin's
+            receiver = self.lights.receivers(vertex.prim[keep])
+            paths.receiver = receiver if vertex.t_mis is None else np.where(through, vertex.receiver[keep], receiver)
         return paths
 
     def _clamp(self, c: np.ndarray, direct, rows=None) -> np.ndarray:

@@ -55,18 +55,26 @@ class PathState:
     beta     (N,3): throughput (photons: flux)
     pdf_prev (N,): q p_b of the bounce that produced the ray (MIS weights of the emission
              it finds); no_mis (N,) bool: that emission counts with weight 1
+    t_mis    (N,) or None (no transparent surface): how far the ray's origin lies along it
+             from the last vertex that was not a transparent pass, where its MIS state was
+             made (Cycles' transparent passes go on with the same ray); at a vertex, from
+             there to the vertex. With it pdf_prev and no_mis stay with the path at its vertex.
+    receiver (N,) int64 or None (no light linking): the receiver set of that vertex (light
+             linking: the lights the ray may find; -1 for camera rays: all)
     specular (N,) bool: every vertex so far was specular (caustic paths; None: not kept)
     depth    bounces so far (rays traced - 1): an int, or (N,) int64 with regeneration
     bounces  Bounces (the light-path limits' counts) or None
     """
 
     __slots__ = ("idx", "o64", "o32", "d", "tmax", "skip", "prim", "mat", "p", "ng", "ns", "bary",
-                 "beta", "pdf_prev", "no_mis", "specular", "depth", "bounces")
+                 "beta", "pdf_prev", "no_mis", "t_mis", "receiver", "specular", "depth", "bounces")
     # Per-path arrays, compacted and joined alike (depth and bounces are handled apart), and
     # those a path carries from its ray to the vertex it arrives at.
     _ARRAYS = __slots__[:-2]
     _CARRIED = ("idx", "d", "beta", "specular")
-    _SPENT = ("o64", "o32", "tmax", "skip", "prim", "mat", "p", "ng", "ns", "bary", "pdf_prev", "no_mis")
+    _SPENT = ("o64", "o32", "tmax", "skip", "prim", "mat", "p", "ng", "ns", "bary", "pdf_prev", "no_mis", "t_mis",
+              "receiver")
+    _MIS = ("pdf_prev", "no_mis", "t_mis", "receiver")  # carried to the vertex with t_mis, else spent
 
     def __init__(self, idx: np.ndarray, depth=0, **fields):
         for name in self.__slots__:
@@ -140,10 +148,15 @@ class PathState:
         the emission they found is counted first), and the vertex is set: prim, mat from
         material (T,) per triangle, p, ng, bary if asked. Rays are dropped before their hit
         points are built (Hit is lazy)."""
+        carried, spent = self._CARRIED, self._SPENT
+        if self.t_mis is not None:
+            carried, spent = carried + self._MIS, tuple(n for n in spent if n not in self._MIS)
         if len(rows) < len(self):
-            out, hit = self._take(rows, self._CARRIED, self._SPENT), hit.take(rows)
+            out, hit = self._take(rows, carried, spent), hit.take(rows)
         else:
-            out = self._take(None, self._CARRIED, self._SPENT)
+            out = self._take(None, carried, spent)
+        if out.t_mis is not None:
+            out.t_mis = out.t_mis + hit.t
         out.prim, out.p, out.ng = hit.prim, hit.p, hit.ng
         out.bary = hit.b if bary else None
         out.mat = material[out.prim]

@@ -36,7 +36,7 @@ from ..scene import LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, RAY_ALL, RAY_CAMERA, Lig
 from ..nodes import light_path as lp
 from ..nodes.hits import EMISSION_RAY, RayState
 from ..vec import dot, max3, scale, take
-from . import light_shader, light_tree, shapes, world as world_light
+from . import light_shader, light_tree, linking, shapes, world as world_light
 from .emission_maps import EmissionMaps
 
 # From this many finite lights on, a light tree chooses them (below: power alone, as the seed
@@ -79,6 +79,7 @@ class LightSample:
     finite: np.ndarray
     valid: np.ndarray
     visibility: np.ndarray | None = None
+    light: np.ndarray | None = None  # (N,) the emitters sampled, where light linking needs them
 
 
 class LightSet:
@@ -144,6 +145,7 @@ class LightSet:
         self.delta[:self.n_analytic] = shapes.is_delta(lights)
         threshold = TREE_MIN_LIGHTS if tree_min_lights is None else tree_min_lights
         self._build_tree(power, threshold)
+        self._link(lights, mesh, power)
         self.env_pmf = float(self.pmf(np.array([self.env_index]))[0]) if self.env is not None and self.select is not None else 0.0
         self.kinds_present = sorted(set(lights.kind.tolist()))
         self.hittable = np.flatnonzero(~shapes.is_delta(lights) & (lights.kind != LIGHT_SUN))
@@ -164,6 +166,36 @@ class LightSet:
     @property
     def empty(self) -> bool:
         return self.select is None
+
+    def _link(self, lights, mesh, power):
+        """Light and shadow linking (linking.py), or None. Chosen by power, a point's light is
+        chosen among those linked to its receiver set (one distribution per set); the light
+        tree chooses among all and a light not linked gives nothing."""
+        links = linking.Links(lights, mesh, self.tri_prim, self.count)
+        self.links = links if links.active else None
+        self.select_by_set = None
+        if self.links is None or not links.light_linked or self.tree is not None or self.select is None:
+            return
+        self.select_by_set = {}
+        for s in links.sets.tolist():
+            p = np.where(links.lit_mask(s), power, 0.0)
+            self.select_by_set[s] = sampling.Distribution1D(p) if p.sum() > 0 else None
+
+    @property
+    def light_linked(self) -> bool:
+        return self.links is not None and self.links.light_linked
+
+    def receivers(self, prim):
+        """(N,) receiver sets of points on triangles prim (N,) (-1: none), or None without light linking."""
+        return None if self.links is None or not self.links.light_linked else self.links.receiver(prim)
+
+    def _by_set(self, receiver):
+        """[(rows, distribution or None)] of the points by receiver set (-1: the scene's)."""
+        out = []
+        for s in np.unique(receiver).tolist():
+            rows = np.flatnonzero(receiver == s)
+            out.append((rows, self.select if s < 0 else self.select_by_set.get(s)))
+        return out
 
     def _build_tree(self, power, threshold):
         """The light tree over the finite lights of positive power, if there are enough."""
@@ -222,12 +254,20 @@ class LightSet:
         two_sided = np.arange(len(index)) >= len(a)
         return axis, theta_o, theta_e, two_sided
 
-    def pmf(self, index: np.ndarray, p: np.ndarray | None = None) -> np.ndarray:
+    def pmf(self, index: np.ndarray, p: np.ndarray | None = None, receiver=None) -> np.ndarray:
         """Selection probability of lights `index` (N,) chosen at shading points p (N,3) (0 for
         all when nothing has power). p may be left out without a light tree and for infinite
-        lights (suns, environment), whose pmf does not depend on the point."""
+        lights (suns, environment), whose pmf does not depend on the point. receiver (N,):
+        the points' receiver sets (light linking; -1 or None: all lights)."""
         if self.select is None:
             return np.zeros(np.shape(index))
+        if receiver is not None and self.select_by_set is not None:
+            index = np.broadcast_to(index, np.shape(receiver))
+            out = np.zeros(np.shape(receiver))
+            for rows, select in self._by_set(receiver):
+                if select is not None:
+                    out[rows] = select.pmf(index[rows])
+            return out
         if self.tree is None:
             return self.select.pmf(index)
         index = np.asarray(index)
@@ -241,8 +281,16 @@ class LightSet:
             out[rows] = (1.0 - self.p_infinite) * self.tree.pmf(slot[rows], p[rows])
         return out
 
-    def _choose(self, p, u):
-        """Light index (N,) and its pmf (N,) for points p (N,3) from uniforms u (N,)."""
+    def _choose(self, p, u, receiver=None):
+        """Light index (N,) and its pmf (N,) for points p (N,3) from uniforms u (N,), among the
+        lights linked to the points' receiver sets receiver (N,) (None: all)."""
+        if receiver is not None and self.select_by_set is not None:
+            index, pmf = np.zeros(len(u), np.int64), np.zeros(len(u))
+            for rows, select in self._by_set(receiver):
+                if select is not None:
+                    index[rows] = select.sample_index(u[rows])
+                    pmf[rows] = select.pmf(index[rows])
+            return index, pmf
         if self.tree is None:
             index = self.select.sample_index(u)
             pmf = self.select.pmf(index)
@@ -262,14 +310,16 @@ class LightSet:
         return index, pmf
 
     # ---- next-event estimation ------------------------------------------------------------
-    def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray, in_unit=False, ray=None) -> LightSample:
+    def sample(self, p: np.ndarray, u_select: np.ndarray, u: np.ndarray, in_unit=False, ray=None,
+               receiver=None) -> LightSample:
         """One light sample per shading point p (N,3) float64; u_select (N,), u (N,2) (in_unit:
         known to lie in [0, 1), a Sampler's numbers: not clamped again); ray: the N paths'
-        RayState, for a world program reading them (world_reads), or None."""
+        RayState, for a world program reading them (world_reads), or None; receiver (N,) the
+        points' receiver sets (receivers(); None: no light linking)."""
         n = len(p)
-        if self.tree is None and self.n_analytic == 0 and self.env is None:
+        if self.tree is None and self.n_analytic == 0 and self.env is None and self.links is None:
             return self._sample_triangles(p, u_select, u, in_unit)
-        index, pmf = self._choose(p, np.asarray(u_select, np.float64))
+        index, pmf = self._choose(p, np.asarray(u_select, np.float64), receiver)
         out = {}  # ShapeSample field -> (N,...) array; every row belongs to exactly one kind of light
 
         def put(rows, sample: shapes.ShapeSample):
@@ -314,9 +364,12 @@ class LightSet:
         delta = self.delta[index]
         pdf = np.where(delta, pmf, pmf * pdf_dir)
         valid = (pdf > 0) & np.isfinite(pdf) & (max3(np.abs(Le)) > 0)  # negative lights count
+        if receiver is not None and self.links is not None:
+            valid &= self.links.lights(index, receiver)
         return LightSample(wi=wi, Le=Le, pdf=np.where(valid, pdf, 0.0), delta=delta, target=target,
                            target_prim=target_prim, finite=finite, valid=valid,
-                           visibility=None if self.nee_visibility is None else self.nee_visibility[index])
+                           visibility=None if self.nee_visibility is None else self.nee_visibility[index],
+                           light=index if self.links is not None else None)
 
     def _sample_triangles(self, p: np.ndarray, u_select, u: np.ndarray, in_unit: bool) -> LightSample:
         """sample() when every light is an emissive triangle chosen by power (the common case):
@@ -372,44 +425,51 @@ class LightSet:
 
     # ---- emission found by rays (BSDF sampling or camera rays) -----------------------------
     def pdf_triangle_hit(self, prim: np.ndarray, p_prev: np.ndarray, t: np.ndarray, cos_light: np.ndarray,
-                         b: np.ndarray):
-        """Selection pmf x solid-angle pdf with which NEE at p_prev would have sampled the hit
-        point (barycentrics b (N,3)) on emissive triangle `prim` at distance t with |cos| at
-        the light."""
+                         b: np.ndarray, receiver=None):
+        """Selection pmf x solid-angle pdf with which NEE at p_prev (of receiver sets receiver
+        (N,), or None) would have sampled the hit point (barycentrics b (N,3)) on emissive
+        triangle `prim` at distance t with |cos| at the light."""
         index = self.light_of_prim[prim]
         tri = index - self.n_analytic
         area = self.tri_area[tri]
-        pdf = self.pmf(index, p_prev) * np.divide(t * t, area * cos_light, out=np.zeros_like(t), where=(area * cos_light) > 0)
+        pdf = self.pmf(index, p_prev, receiver) * np.divide(t * t, area * cos_light, out=np.zeros_like(t), where=(area * cos_light) > 0)
         if self.maps is not None:
             r = np.flatnonzero(self.tri_varying[tri])
             pdf[r] *= self.maps.pdf_in_triangle(self.map_row[tri[r]], b[r])
         return np.where(np.isfinite(pdf), pdf, 0.0)
 
     def emission_along(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, pdf_bsdf: np.ndarray,
-                       use_mis: np.ndarray, camera: np.ndarray, kind: np.ndarray = None) -> np.ndarray:
+                       use_mis: np.ndarray, camera: np.ndarray, kind: np.ndarray = None,
+                       tmin: np.ndarray = None, receiver: np.ndarray = None) -> np.ndarray:
         """Radiance (N,3) that rays o + t d, 0 < t < tmax, collect from the finite analytic lights
         they pass through, each weighted by the balance heuristic
         pdf_bsdf / (pdf_bsdf + pdf_light) where use_mis, else 1. camera (N,) bool: camera rays
         see only lights marked visible; kind (N,) RAY_* bit of each ray or None: rays see only
-        lights visible to their kind."""
+        lights visible to their kind; tmin (N,) or None: only lights past it (a ray gone on
+        through transparent surfaces, o the vertex its MIS state is from); receiver (N,) or
+        None: the receiver sets of the rays' origins (light linking: only lights linked to them)."""
         total = np.zeros((len(o), 3))
         lights = self.lights
         for i in self.hittable.tolist():
             h = shapes.hit_analytic(int(lights.kind[i]), lights, i, o, d, tmax)
-            self._add_weighted(total, i, h, pdf_bsdf, use_mis, camera, kind, o, d)
+            if tmin is not None:
+                h = shapes.LightHit(h.hit & (h.t > tmin), h.gain, h.pdf, h.t)
+            self._add_weighted(total, i, h, pdf_bsdf, use_mis, camera, kind, o, d, receiver)
         return total
 
     def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray,
-                kind: np.ndarray = None, ray=None) -> np.ndarray:
+                kind: np.ndarray = None, ray=None, receiver=None) -> np.ndarray:
         """Radiance (N,3) for rays leaving the scene along d: suns and the world's light
         (MIS-weighted like `emission_along`; a world program without a table and the constant
         world weigh 1: they are never light-sampled). Camera rays see the world only if it is
         visible; with kind (N,), rays see only what is visible to their kind. A world program
         whose Light Path reads the paths (world_reads) reads ray, the N rays' RayState; without
-        one, a camera ray's first hit where camera, else a ray leaving a diffuse bounce."""
+        one, a camera ray's first hit where camera, else a ray leaving a diffuse bounce.
+        receiver: as emission_along."""
         total = np.zeros((len(d), 3))
         for i in self.suns.tolist():
-            self._add_weighted(total, i, shapes.sun_hit(self.lights, i, d), pdf_bsdf, use_mis, camera, kind, None, d)
+            self._add_weighted(total, i, shapes.sun_hit(self.lights, i, d), pdf_bsdf, use_mis, camera, kind, None, d,
+                               receiver)
         seen = ~camera | self.world_visible
         if kind is not None and self.partial_visibility:
             seen = seen & ((kind & self.world_visibility) != 0)
@@ -428,24 +488,32 @@ class LightSet:
         if self.env is not None or self.background is not None:
             w = np.ones(len(d))
             if self.env is not None and np.any(use_mis):
-                pdf_light = self.env_pmf * self.env.pdf(d)
+                pmf = self.env_pmf if receiver is None or self.select_by_set is None else \
+                    self.pmf(np.full(len(d), self.env_index), receiver=receiver)
+                pdf_light = pmf * self.env.pdf(d)
                 w = np.where(use_mis, pdf_bsdf / np.maximum(pdf_bsdf + pdf_light, 1e-300), 1.0)
             total += np.where(seen[:, None], Le * w[:, None], 0.0)
         elif np.abs(self.world).max() > 0:
             total += np.where(seen[:, None], self.world, 0.0)
         return total
 
-    def _add_weighted(self, total, i, h: shapes.LightHit, pdf_bsdf, use_mis, camera, kind=None, o=None, d=None):
+    def _add_weighted(self, total, i, h: shapes.LightHit, pdf_bsdf, use_mis, camera, kind=None, o=None, d=None,
+                      receiver=None):
         """total += gain x Le[i] x MIS weight on the rays that hit light i (h; from origins o,
-        (N,3), None for infinite lights; along d (N,3), for a light whose shader varies)."""
+        (N,3), None for infinite lights; along d (N,3), for a light whose shader varies;
+        receiver (N,): the receiver sets of the origins, or None)."""
         hit = h.hit
         if not self.lights.visible[i]:
             hit = hit & ~camera
         if kind is not None and self.partial_visibility:
             hit = hit & ((kind & self.light_visibility[i]) != 0)
+        if receiver is not None and self.links is not None:
+            hit = hit & self.links.lights(np.full(len(hit), i), receiver)
         if not hit.any():
             return
-        if o is None or self.tree is None:
+        if receiver is not None and self.select_by_set is not None:
+            pmf = self.pmf(np.full(len(hit), i), receiver=receiver)
+        elif o is None or self.tree is None:
             pmf = self.pmf(np.array([i]))[0]
         else:  # the point-dependent pmf, on the rays that hit only
             pmf = np.zeros(len(hit))

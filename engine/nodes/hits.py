@@ -22,8 +22,9 @@ Where this is not Cycles' state exactly:
 - vertex_normal, N_du, N_dv: from the export's corner normals, which are Cycles' vertex
   normals (its own for normals per vertex, those of the mesh it splits for normals per corner);
 - instancer_generated, instancer_uv: zeros (the export does not carry the instancer's);
-- the path: Ember evaluates no program for shadow rays (its shadows are opaque: no SHADOW
-  flag is ever read), has no volumes (VOLUME_SCATTER) nor portals (portal_bounce 0); a light
+- the path: shadow rays evaluate programs only at transparent surfaces they pass (flag
+  SHADOW, their counts 0 but transparent_bounce), has no volumes (VOLUME_SCATTER) nor portals
+  (portal_bounce 0); a light
   sample's emission reads bounce counts 0 where Cycles reads the path's; the photon
   integrator's hits all read as camera rays' first hits, the irradiance cache's and caustic
   path's gather rays as leaving a diffuse bounce with the camera's footprint there

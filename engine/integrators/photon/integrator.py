@@ -32,8 +32,10 @@ from ...nodes.material import MaterialPrograms
 from ...errors import Cancelled
 from ...lights.emission import PhotonEmitter
 from ...vec import dot, gatherer, max3, scale, take
+from ...visibility import RayVisibility
 from ..base import Integrator, Stage
 from ..path_state import PathState
+from ..shadows import ShadowRays
 from ..surface import emitted, flat_normals, shading_frame, towards
 from .photon_map import PhotonMap, RadiancePhotons
 from .tracing import PhotonTracer, diffuse_materials
@@ -159,6 +161,7 @@ class PhotonIntegrator(Integrator):
         self.lambert_albedo = plain_lambert_albedo(self.scene.materials)
         self.programs = MaterialPrograms.of(self.scene.materials)
         self.flat_normal = flat_normals(self.scene.mesh)
+        self.shadows = ShadowRays(self.scene, RayVisibility(ctx.accel, self.scene.mesh), self.programs, ctx.lights.links)
         self.stores = diffuse_materials(self.scene.materials)
         self.emissive_material = self.scene.materials.emission.mean(axis=1) > 0
         # per triangle; a miss (-1) reads the last entry, False
@@ -262,7 +265,8 @@ class PhotonIntegrator(Integrator):
             diffuse = self.stores[mat] & bsdf.has_smooth
             x = np.flatnonzero(diffuse)
             if len(x):
-                self._shade_diffuse(L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist)
+                self._shade_diffuse(L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist,
+                                    bary)
             spec = np.flatnonzero(~diffuse)
             if depth == s.max_depth or len(spec) == 0:
                 break
@@ -281,9 +285,10 @@ class PhotonIntegrator(Integrator):
             skip, tmax = prim[ok], None
         return np.ascontiguousarray(L.T)
 
-    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist):
+    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist,
+                       bary=None):
         """Direct light, caustics and final gathering at the diffuse points x (rows of idx);
-        dist: the camera paths' lengths."""
+        dist: the camera paths' lengths; bary (N,3) the points' barycentrics."""
         s = self.scene.settings
         at = gatherer(x, len(idx))
         rows, bx = idx[x], at(beta)
@@ -309,7 +314,7 @@ class PhotonIntegrator(Integrator):
             return
         if not indirect:
             self._direct_light(L, sampler.get(1 + _GROUPS * depth + _LIGHT, rows, 3), rows, x, bx, at, p, ng_f, ns,
-                               prim, bsdf, G)
+                               prim, bsdf, G, bary)
         if G == 0:
             return
         # Final gathering: G rays per point, stratified over the pixel's camera samples.
@@ -349,24 +354,33 @@ class PhotonIntegrator(Integrator):
             return ~self.ctx.accel.occluded(o, t)
         return accept
 
-    def _direct_light(self, L, u_light, rows, x, bx, at, p, ng_f, ns, prim, bsdf, G):
+    def _direct_light(self, L, u_light, rows, x, bx, at, p, ng_f, ns, prim, bsdf, G, bary=None):
         """One light sample (uniforms u_light (K,3)) at each diffuse point x (K,) (rows of L),
         weighted by the balance heuristic against G BSDF samples (Veach's multi-sample MIS;
-        G = 0: light sampling alone)."""
+        G = 0: light sampling alone); the shadow terminator's offsets as the path tracer's."""
         lights = self.ctx.lights
         if lights.empty:
             return
-        ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2])
-        f, pdf_b = bsdf.eval(ls.wi, x)
+        ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2],
+                           receiver=lights.receivers(prim[x]) if lights.light_linked else None)
+        f, pdf_b = bsdf.eval(ls.wi, x, None, self.shadows.lifted(prim[x]))
+        shift = self.shadows.shading_factor(prim[x], at(bsdf.ns), ls.wi)
+        if shift is not None:
+            f = scale(f, shift)
         cos_i = np.abs(dot(ls.wi, at(ns)))
         w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + G * pdf_b, 1e-300))
         contrib = bx * f * scale(ls.Le, np.divide(cos_i * w, ls.pdf, out=np.zeros(len(x)), where=ls.valid))
         test = np.flatnonzero(max3(contrib) > 0)
         if len(test):
-            o_shadow = offset_origin(take(at(p), test), towards(take(at(ng_f), test), take(ls.wi, test)))
-            blocked = self.ctx.accel.occluded(o_shadow, take(ls.target, test), prim[x[test]], ls.target_prim[test])
-            lit = test[~blocked]
-            _accumulate(L, rows[lit], take(contrib, lit))
+            t = x[test]
+            o_shadow, skip = self.shadows.origin(take(at(p), test), towards(take(at(ng_f), test), take(ls.wi, test)),
+                                                 prim[t], None if bary is None else take(bary, t),
+                                                 take(getattr(bsdf, "n_smooth", bsdf.ns), t), take(at(ng_f), test),
+                                                 take(ls.wi, test))
+            lit, T = self.shadows.trace(o_shadow, take(ls.target, test), skip, ls.target_prim[test],
+                                        light=None if ls.light is None else ls.light[test])
+            lit = test[lit]
+            _accumulate(L, rows[lit], take(contrib, lit) if T is None else take(contrib, lit) * T)
 
     def _gather(self, sampler, pts, p, ng_f, prim, bsdf, G, emission_only=False, emission=True):
         """Radiance (K,3) x BSDF weight of one gather ray from each diffuse point pts (K,);
@@ -374,6 +388,9 @@ class PhotonIntegrator(Integrator):
         emission False: none of the emission the ray finds first (its light is sampled apart)."""
         u = sampler.get(0, None, 3)
         bs = _sample_rows(bsdf, pts, u)
+        shift = self.shadows.shading_factor(prim[pts], take(bsdf.ns, pts), bs.wi)  # the Shading Offset
+        if shift is not None:
+            bs.weight = scale(bs.weight, shift)
         g = np.flatnonzero(bs.valid)
         d = take(bs.wi, g)
         o64 = take(p, pts[g])
@@ -426,21 +443,26 @@ class PhotonIntegrator(Integrator):
         lights, idx = self.ctx.lights, rays.idx
         not_camera = np.zeros(len(rays), bool)
         use_mis = ~rays.no_mis
+        receiver = lights.receivers(rays.skip)  # light linking: the lights linked to the points they leave
         if len(lights.hittable):
             _accumulate(out, idx, rays.beta * lights.emission_along(rays.o64, rays.d, hit.t, rays.pdf_prev, use_mis,
-                                                                    not_camera))
+                                                                    not_camera, receiver=receiver))
         missed = hit.prim < 0
         if missed.any() and lights.sees_escaped:
             r = np.flatnonzero(missed)
             _accumulate(out, idx[r], take(rays.beta, r) * lights.escaped(take(rays.d, r), rays.pdf_prev[r], use_mis[r],
-                                                                          not_camera[r]))
+                                                                          not_camera[r], receiver=None if receiver is None
+                                                                          else receiver[r]))
         emits = self.emissive_prim[hit.prim]
+        if receiver is not None and emits.any():
+            emits &= lights.links.lights(lights.light_of_prim[np.maximum(hit.prim, 0)], receiver)
         if emits.any():
             r = np.flatnonzero(emits)
             prim, pm = hit.prim[r], rays.pdf_prev[r]
             at = hit.take(r)
             cos_l = np.abs(dot(take(rays.d, r), at.ng))
-            pdf_light = lights.pdf_triangle_hit(prim, take(rays.o64, r), hit.t[r], cos_l, at.b)
+            pdf_light = lights.pdf_triangle_hit(prim, take(rays.o64, r), hit.t[r], cos_l, at.b,
+                                                None if receiver is None else receiver[r])
             w = np.where(rays.no_mis[r], 1.0, pm / np.maximum(pm + pdf_light, 1e-300))
             Le = emitted(self.scene, self.programs, self.flat_normal, take(self.scene.materials.emission,
                          self.scene.mesh.material[prim]), at, take(rays.d, r))

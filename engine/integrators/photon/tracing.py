@@ -51,6 +51,7 @@ class PhotonTracer:
         self.flat_normal = flat_normals(ctx.scene.mesh)
         self.stores = diffuse_materials(ctx.scene.materials)
         self.max_depth = max_depth
+        self.lights = ctx.lights
 
     def trace(self, sampler, caustic_only: bool, stop=None) -> dict:
         """Trace one photon path per row of `sampler` (domain PHOTONS).
@@ -75,6 +76,8 @@ class PhotonTracer:
                 break
             hit = photons.intersect(self.accel)
             photons = photons.arrive(hit, np.flatnonzero(hit.prim >= 0), mesh.material)
+            if photons.depth == 0 and self.lights.light_linked and len(photons):
+                photons = self._linked(photons, em.light)
             if len(photons) == 0:
                 break
             bounces += len(photons)
@@ -96,6 +99,18 @@ class PhotonTracer:
             arrays[key] = np.concatenate(out[key]) if out[key] else np.zeros(0, bool)
         arrays["bounces"] = np.array([bounces])
         return arrays
+
+    def _linked(self, photons: PathState, light: np.ndarray) -> PathState:
+        """The photons at their first hits that their emitters (light (N,) by photon row) light:
+        light linking keeps a linked emitter's light off the other objects (a constant world's
+        photons, index past the LightSet's emitters, reach everything)."""
+        emitter = light[photons.idx]
+        links = self.lights.links
+        known = emitter < len(links.receive)
+        ok = ~known
+        r = np.flatnonzero(known)
+        ok[r] = links.lights(emitter[r], links.receiver(photons.prim[r]))
+        return photons if ok.all() else photons.take(np.flatnonzero(ok))
 
     @staticmethod
     def _store(out: dict, photons: PathState, wo: np.ndarray, diffuse: np.ndarray, caustic_only: bool) -> None:
