@@ -32,6 +32,11 @@ def Lambda(alpha, w):
     a2 = np.asarray(alpha, np.float64) ** 2
     z2 = w[:, 2] * w[:, 2]
     s = np.divide(a2 * (w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1]), z2, out=np.full(len(w), np.inf), where=z2 > 0.0)
+    return lambda_of(s)
+
+
+def lambda_of(s):
+    """Cycles' Lambda (K,) from s = alpha^2 tan^2 (K,) (bsdf_lambda_from_sqr_alpha_tan_n)."""
     a = 1.0 / np.sqrt(np.maximum(s, 0.39))
     lam = ((0.396 * a - 1.259) * a + 1.0) / ((2.181 * a + 3.535) * a)
     return np.where(s < 0.39, 0.0, lam)
