@@ -77,10 +77,9 @@ def _dielectric_polarized(cos_i, eta):
 def _airy(R12, R23, opd, phasor):
     """The Airy sum (K,3) of one polarisation: R12 (K,), R23 (K,) or (K,3), phasor exp(i phi)
     (K,) or (K,3) complex."""
+    R12 = R12[:, None]
     T121 = 1.0 - R12
-    if np.ndim(R23) == 2:
-        R12, T121 = R12[:, None], T121[:, None]
-    else:
+    if np.ndim(R23) == 1:
         R23, phasor = R23[:, None], phasor[:, None]
     R123 = R12 * R23
     Rs = np.divide(T121 * T121 * R23, 1.0 - R123, out=np.zeros_like(R123), where=R123 < 1.0)
