@@ -192,3 +192,40 @@ def test_refraction_only_never_reflects_and_keeps_the_refraction():
     s = lobe.sample(p, np.tile([0.8, 0.0, 0.6], (50_000, 1)), rng.random((50_000, 2)), rng.random(50_000))
     assert np.all(s.wi[s.pdf > 0, 2] < 0)
     assert DIST_GGX == 0  # GGX: the refraction-only lobe's distribution here
+
+
+# ---------------------------------------------------------------- with Blender
+
+PRINCIPLED = "ShaderNodeBsdfPrincipled"
+SPHERES = [
+    dict(name="film_specular", kind=PRINCIPLED, Roughness=0.2,
+         **{"Base Color": (0.05, 0.05, 0.05, 1.0), "Thin Film Thickness": 500.0, "Thin Film IOR": 1.33}),
+    dict(name="film_metal", kind=PRINCIPLED, Roughness=0.25, Metallic=1.0,
+         **{"Base Color": (0.9, 0.9, 0.9, 1.0), "Thin Film Thickness": 320.0, "Thin Film IOR": 1.5}),
+    dict(name="film_glass", kind="ShaderNodeBsdfGlass", Roughness=0.15,
+         **{"Thin Film Thickness": 400.0, "Thin Film IOR": 1.6}),
+    dict(name="physical_conductor", kind="ShaderNodeBsdfMetallic", Roughness=0.3, fresnel_type="PHYSICAL_CONDUCTOR",
+         IOR=tuple(GOLD[0]), Extinction=tuple(GOLD[1])),
+    dict(name="refraction", kind="ShaderNodeBsdfRefraction", Roughness=0.1, IOR=1.45),
+    dict(name="transmission_specular_tint", kind=PRINCIPLED, Roughness=0.2,
+         **{"Transmission Weight": 1.0, "Specular Tint": (1.0, 0.3, 0.1, 1.0), "Base Color": (0.9, 0.9, 0.9, 1.0)}),
+]
+RUNS, SAMPLES, TOL = 6, 96, 0.01
+
+
+@pytest.mark.blender
+def test_film_conductor_and_refraction_spheres_render_as_cycles():
+    """Thin film on a Principled dielectric, a Principled metal and a Glass BSDF; a physical
+    conductor Metallic BSDF (gold's n, k); a Refraction BSDF; Principled transmission with a
+    Specular Tint: each quadrant of each sphere, per channel, within 1 % plus the noise band."""
+    import feature_spheres as fs
+    bpy = fs.bpy_module()
+    import ember
+    ember.register()
+    try:
+        sc = fs.build(bpy, SPHERES)
+        cycles = fs.cycles_images(bpy, sc, SAMPLES, RUNS)
+        emb = fs.ember_images(bpy, SAMPLES, RUNS)
+    finally:
+        ember.unregister()
+    fs.compare(emb, cycles, len(SPHERES), TOL)

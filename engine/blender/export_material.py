@@ -357,6 +357,8 @@ class _Converter:
             if kind == "ShaderNodeBsdfRefraction":
                 self.note(f"'{node.name}' Refraction BSDF (rendered as Glass: adds the Fresnel reflection)")
             dist = self.distribution(node, reflection=False)
+            if self._set(node, "Thin Film Thickness"):
+                self.note(f"'{node.name}' thin film (ignored)")
             color, tex = self.color(node, "Color")
             rough, rtex = self.value(node, "Roughness")
             ior = max(self.constant(node, "IOR"), 1e-5)
@@ -417,9 +419,16 @@ class _Converter:
             self.add(w, kind=LOBE_MICROFACET, fresnel=FRESNEL_NONE, color=tuple(color), color_tex=tex,
                      roughness=rough, roughness_tex=rtex, distribution=dist)
 
+    def _set(self, node, name: str) -> bool:
+        sock = node.inputs.get(name)
+        return sock is not None and (sock.is_linked or float(sock.default_value) != 0.0)
+
     def metallic(self, node, w):
         dist = self.distribution(node)
         rough, rtex = self.value(node, "Roughness")
+        for label, key in (("anisotropy", "Anisotropy"), ("thin film", "Thin Film Thickness")):
+            if self._set(node, key):
+                self.note(f"'{node.name}' {label} (ignored)")
         self.normal_input(node)
         if getattr(node, "fresnel_type", "F82") == "F82":
             f0, tex = self.color(node, "Base Color")
