@@ -74,14 +74,17 @@ def _linked_or_set(node, name: str, default: float) -> bool:
     return socket is not None and (socket.link is not None or float(np.max(socket.value)) != default)
 
 
-_REFLECTION_ONLY = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy", "ShaderNodeBsdfMetallic")
+_BECKMANN = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy", "ShaderNodeBsdfMetallic", "ShaderNodeBsdfGlass",
+             "ShaderNodeBsdfRefraction")
+_ASHIKHMIN_SHIRLEY = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy")
 
 
 def _distribution(node) -> str:
-    """The node's distribution as a lobe parameter: Multiscatter GGX, GGX, and Beckmann or
-    Ashikhmin-Shirley on the reflection lobes (Glossy, Metallic); GGX for the others."""
+    """The node's distribution as a lobe parameter: Multiscatter GGX, GGX, Beckmann (Glossy,
+    Metallic, Glass, Refraction) and Ashikhmin-Shirley (Glossy) where Blender offers them."""
     dist = node.prop("distribution", "GGX")
-    if dist == "MULTI_GGX" or (dist in ("BECKMANN", "ASHIKHMIN_SHIRLEY") and node.kind in _REFLECTION_ONLY):
+    if (dist == "MULTI_GGX" or (dist == "BECKMANN" and node.kind in _BECKMANN)
+            or (dist == "ASHIKHMIN_SHIRLEY" and node.kind in _ASHIKHMIN_SHIRLEY)):
         return dist
     return "GGX"
 

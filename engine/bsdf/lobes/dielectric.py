@@ -17,14 +17,15 @@ transmission) reflect the exact Fresnel remapped to F0 = F0(ior) x their Specula
 with a thin film (Glass, Principled) its iridescent Fresnel F_c (engine/bsdf/thin_film.py, the
 film's index relative to wo's side); they reflect F_c x tint and refract (1 - F_c) x colour.
 The branch is still chosen with the exact Fresnel F (unbiased: the colours are divided by F
-and 1 - F). Refraction-only rows (Refraction BSDF) never reflect."""
+and 1 - F). Refraction-only rows (Refraction BSDF) never reflect. Rows of DIST_BECKMANN (Glass
+and Refraction BSDF) use the Beckmann distribution (dielectric.BECKMANN)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...scene import DIST_MULTI_GGX, FRESNEL_DIELECTRIC, LOBE_DIELECTRIC, RAY_GLOSSY, RAY_TRANSMIT
+from ...scene import DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, LOBE_DIELECTRIC, RAY_GLOSSY, RAY_TRANSMIT
 from .. import dielectric, fresnel, microfacet, multiscatter, thin_film
 from . import inputs
 from .base import CLASS_GLOSSY, CLASS_TRANSMISSION, LABEL_GLOSSY, LABEL_TRANSMIT, LobeSample, SurfaceLobe, SurfaceParams
@@ -39,7 +40,8 @@ class DielectricParams(SurfaceParams):
     ior (K,) n_inside / n_outside; inside (K,) bool: wo behind the winding normal; multi
     (K,) bool: DIST_MULTI_GGX; f0_tint (K,3) the remapped Fresnel's F0 tint (1: the exact
     Fresnel); film, film_ior (K,) the thin film; coloured (K,) bool: rows of a coloured
-    Fresnel (F0 tint or film); refract_only (K,) bool or None (no such row)."""
+    Fresnel (F0 tint or film); refract_only (K,) bool or None (no such row); beckmann (K,)
+    bool or None (no such row): DIST_BECKMANN."""
 
     tint: np.ndarray
     roughness: np.ndarray
@@ -52,6 +54,7 @@ class DielectricParams(SurfaceParams):
     film_ior: np.ndarray
     coloured: np.ndarray
     refract_only: np.ndarray | None
+    beckmann: np.ndarray | None
 
 
 def energy(p: DielectricParams, wo: np.ndarray, wi=None):
@@ -113,9 +116,27 @@ def _sample_smooth(p, wo, wo_o, out, u_branch):
     return wi_o * out, weight, pmf
 
 
+def _by_distribution(p, fn, *rows_args):
+    """fn(alpha, ior, *args, refract_only, dist) over p's rows, per distribution; rows_args
+    (K, ...) arrays; returns fn's outputs (a tuple or one array) for all rows."""
+    if p.beckmann is None:
+        return fn(p.alpha, p.ior, *rows_args, p.refract_only)
+    parts = []
+    for dist, r in ((dielectric.GGX, np.flatnonzero(~p.beckmann)), (dielectric.BECKMANN, np.flatnonzero(p.beckmann))):
+        if len(r):
+            only = None if p.refract_only is None else p.refract_only[r]
+            parts.append((r, fn(p.alpha[r], p.ior[r], *(a[r] for a in rows_args), only, dist)))
+    one = not isinstance(parts[0][1], tuple)
+    outs = [np.empty((len(p),) + np.shape(v)[1:]) for v in ((parts[0][1],) if one else parts[0][1])]
+    for r, v in parts:
+        for o, x in zip(outs, (v,) if one else v):
+            o[r] = x
+    return outs[0] if one else tuple(outs)
+
+
 def _sample_rough(p, wo, wo_o, out, u, u_branch):
     """Rough rows: (wi, pdf), pdf 0 for wo under the shading normal."""
-    wi_o, _, pdf = dielectric.sample_rough(p.alpha, p.ior, wo_o, u, u_branch, p.refract_only)
+    wi_o, _, pdf = _by_distribution(p, dielectric.sample_rough, wo_o, u, u_branch)
     return wi_o * out, np.where(wo[:, 2] > 0, pdf, 0.0)
 
 
@@ -137,11 +158,13 @@ class Dielectric(SurfaceLobe):
             f0_tint[remapped], tint = tint[remapped], np.where(remapped[:, None], 1.0, tint)
         film, film_ior = inputs.film(m, lobe, src)
         refract_only = m.lobe_refract_only[lobe]
+        beckmann = m.lobe_distribution[lobe] == DIST_BECKMANN
         return DielectricParams(color=color, delta=dielectric.is_delta(alpha, ior), tint=tint,
                                 roughness=roughness, alpha=alpha, ior=ior, inside=inside[point],
                                 multi=m.lobe_distribution[lobe] == DIST_MULTI_GGX, f0_tint=f0_tint, film=film,
                                 film_ior=film_ior, coloured=remapped | (film > thin_film.CUTOFF),
-                                refract_only=refract_only if refract_only.any() else None)
+                                refract_only=refract_only if refract_only.any() else None,
+                                beckmann=beckmann if beckmann.any() else None)
 
     def is_delta(self, p):
         return dielectric.is_delta(p.alpha, p.ior)
@@ -176,15 +199,15 @@ class Dielectric(SurfaceLobe):
         if len(c):
             cos_oh, eta_rel, reflect = dielectric.half_cosine(p.ior[c], wo_o[c], wi_o[c])
             tint[c] = _colour_factors(p.take(c), cos_oh, eta_rel, wo_o[c, 2] > 0, reflect)
-        f = dielectric.eval_rough(p.alpha, p.ior, wo_o, wi_o, p.refract_only) * tint * (wo[:, 2:3] > 0)
+        f = _by_distribution(p, dielectric.eval_rough, wo_o, wi_o) * tint * (wo[:, 2:3] > 0)
         r, scale, _ = energy(p, wo, wi)
         if len(r):
             f[r] *= scale
-        return f, np.where(wo[:, 2] > 0, dielectric.pdf_rough(p.alpha, p.ior, wo_o, wi_o, p.refract_only), 0.0)
+        return f, np.where(wo[:, 2] > 0, _by_distribution(p, dielectric.pdf_rough, wo_o, wi_o), 0.0)
 
     def pdf(self, p, wo, wi):
         out = _outward(p)
-        return np.where(wo[:, 2] > 0, dielectric.pdf_rough(p.alpha, p.ior, wo * out, wi * out, p.refract_only), 0.0)
+        return np.where(wo[:, 2] > 0, _by_distribution(p, dielectric.pdf_rough, wo * out, wi * out), 0.0)
 
     def sample(self, p, wo, u, u_branch) -> LobeSample:
         out = _outward(p)
