@@ -25,6 +25,7 @@ from functools import lru_cache
 import numpy as np
 
 from . import fresnel
+from ..nodes.color import XYZ_TO_REC709, wavelength_xyz
 
 CUTOFF = 0.1  # nm: THINFILM_THICKNESS_CUTOFF
 TABLE_SIZE = 512  # THIN_FILM_TABLE_SIZE
@@ -37,7 +38,6 @@ def sensitivity_table() -> np.ndarray:
     """(TABLE_SIZE, 3) complex S at the table's nodes: the trapezoidal integral over 380-780
     nm in 0.25 nm steps of Rec.709 colour matching functions (engine/nodes/color.py's CIE
     table through its XYZ to Rec.709 matrix)."""
-    from ..nodes.color import XYZ_TO_REC709, wavelength_xyz
     lam = np.arange(380.0, 780.0 + 1e-9, 0.25)
     cmf = wavelength_xyz(lam) @ XYZ_TO_REC709.T  # (L,3)
     w = np.full(len(lam), 0.25)

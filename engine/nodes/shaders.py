@@ -4,10 +4,13 @@ closures from them (svm/closure.h), and what Ember approximates.
 A BSDF node makes closures whose kind is a lobe's ("diffuse", "microfacet", ...), whose weight
 is its mixture weight and whose params are the lobe's inputs, per point or constant:
   color, tint (3), roughness (Blender's, alpha = roughness^2; Oren-Nayar's sigma), ior, exponent
-  (Phong), fresnel ("none", "f82", "dielectric": the microfacet lobe's model), distribution
-  ("GGX", "MULTI_GGX": the node's microfacet distribution), normal (3, unnormalised
+  (Phong), fresnel ("none", "f82", "dielectric", "conductor": the microfacet lobe's model; on
+  glass "dielectric" makes tint the Fresnel's F0 tint), distribution ("GGX", "MULTI_GGX",
+  "BECKMANN", "ASHIKHMIN_SHIRLEY": the node's microfacet distribution), normal (3, unnormalised
   world direction where the node's Normal is linked), layer (the tag of the closure this one
-  lies under: it keeps 1 - that lobe's albedo, Cycles' closure layering).
+  lies under: it keeps 1 - that lobe's albedo, Cycles' closure layering), aspect and tangent
+  (anisotropy, per point: alpha_x = alpha / aspect along the world direction tangent),
+  film_thickness and film_ior (a thin film on the Fresnel), refract_only (Refraction BSDF).
 Every closure has a tag unique within its node (the node's label and its part), so layers
 survive Mix and Add Shader. A closure of constant weight at most CUTOFF is left out, as Cycles
 leaves out closures lighter than CLOSURE_WEIGHT_CUTOFF.
