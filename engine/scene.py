@@ -41,6 +41,9 @@ TOON_DIFFUSE, TOON_GLOSSY = 0, 1  # the Toon cone's axis: the normal, wo's mirro
 FRESNEL_NONE = 0  # F = colour (Glossy BSDF)
 FRESNEL_F82 = 1  # conductor: F0 = colour, F82 tint = tint (Principled metallic, Metallic BSDF)
 FRESNEL_DIELECTRIC = 2  # exact Fresnel of ior remapped to F0 = F0(ior) tint .. 1 (Principled)
+FRESNEL_CONDUCTOR = 3  # exact conductor Fresnel of n = colour, k = tint (Metallic BSDF, Physical Conductor)
+# LOBE_DIELECTRIC: FRESNEL_NONE reflects F x tint (Glass); FRESNEL_DIELECTRIC reflects the exact
+# Fresnel remapped to F0 = F0(ior) tint .. 1, untinted (Principled transmission's Specular Tint).
 
 # Microfacet distribution of LOBE_MICROFACET and LOBE_DIELECTRIC (the nodes' `distribution`).
 DIST_GGX = 0  # single-scattering GGX
@@ -158,7 +161,7 @@ class Mesh:
 _LOBE_DEFAULTS = dict(kind=LOBE_DIFFUSE, weight=(1.0, 1.0, 1.0), color=(0.8, 0.8, 0.8), color_tex=-1,
                       color_sqrt=False, tint=(1.0, 1.0, 1.0), tint_is_color=False, roughness=0.5,
                       roughness_tex=-1, ior=1.5, fresnel=FRESNEL_NONE, distribution=DIST_GGX, exponent=1.0, layer=-1,
-                      opacity_tex=-1, opacity_invert=False)
+                      opacity_tex=-1, opacity_invert=False, film_thickness=0.0, film_ior=1.33, refract_only=False)
 _SLOT_DEFAULTS = dict(image=0, output=TEX_COLOR, extension=EXT_REPEAT, interpolation=INTERP_LINEAR,
                       transform=((1.0, 0.0, 0.0), (0.0, 1.0, 0.0)))
 
@@ -187,7 +190,10 @@ class Materials:
     DIST_* of microfacet and dielectric lobes; lobe_exponent (K,)
     Phong n; lobe_layer (K,) the lobe this one lies under (it is scaled by 1 - that lobe's
     albedo, Cycles' closure layering; -1 none); lobe_opacity_tex (K,) slot whose scalar
-    value multiplies the weight (1 - value where lobe_opacity_invert): textured alpha.
+    value multiplies the weight (1 - value where lobe_opacity_invert): textured alpha;
+    lobe_film_thickness (K,) nm and lobe_film_ior (K,): a thin film on a microfacet or glass
+    lobe's Fresnel (engine/bsdf/thin_film.py; none below 0.1 nm); lobe_refract_only (K,) bool:
+    a dielectric lobe without its reflection (the Refraction BSDF).
 
     Texture slots (S): tex_image (S,) image index, tex_output (S,) TEX_COLOR / TEX_ALPHA,
     tex_extension (S,) EXT_*, tex_interpolation (S,) INTERP_*, tex_transform (S,2,3) affine
@@ -227,6 +233,9 @@ class Materials:
     lobe_layer: np.ndarray = None
     lobe_opacity_tex: np.ndarray = None
     lobe_opacity_invert: np.ndarray = None
+    lobe_film_thickness: np.ndarray = None
+    lobe_film_ior: np.ndarray = None
+    lobe_refract_only: np.ndarray = None
     tex_image: np.ndarray = None
     tex_output: np.ndarray = None
     tex_extension: np.ndarray = None
@@ -311,6 +320,9 @@ class Materials:
             lobe_layer=col("layer", np.int32),
             lobe_opacity_tex=col("opacity_tex", np.int32),
             lobe_opacity_invert=col("opacity_invert", bool),
+            lobe_film_thickness=col("film_thickness", np.float64),
+            lobe_film_ior=col("film_ior", np.float64),
+            lobe_refract_only=col("refract_only", bool),
             tex_image=np.array([s["image"] for s in slots], np.int32),
             tex_output=np.array([s["output"] for s in slots], np.int32),
             tex_extension=np.array([s["extension"] for s in slots], np.int32),

@@ -89,7 +89,9 @@ def test_principled_is_split_like_cycles():
     # Refraction tinted sqrt(base colour) (the table's flag or the value itself), reflection white.
     refraction = np.sqrt(m.lobe_color[glass]) if m.lobe_color_sqrt[glass] else m.lobe_color[glass]
     np.testing.assert_allclose(refraction, np.sqrt([0.2, 0.4, 0.6]), rtol=1e-6)
-    assert not m.lobe_tint_is_color[glass] and np.allclose(m.lobe_tint[glass], 1.0)
+    # Its Fresnel's F0 tinted by Specular Tint (Cycles' generalised Schlick on the glass lobe).
+    assert m.lobe_fresnel[glass] == S.FRESNEL_DIELECTRIC and not m.lobe_tint_is_color[glass]
+    np.testing.assert_allclose(m.lobe_tint[glass], [1.0, 0.9, 0.8], rtol=1e-6)
     np.testing.assert_allclose(m.lobe_ior[[glass, spec]], 1.45, rtol=1e-6)
     np.testing.assert_allclose(m.lobe_tint[spec], [1.0, 0.9, 0.8], rtol=1e-6)
     assert m.lobe_layer[diffuse] == spec and m.lobe_layer[spec] == -1
@@ -98,8 +100,7 @@ def test_principled_is_split_like_cycles():
     # Specular IOR Level 0.25 halves F0 and moves the IOR with it.
     spec_level = rows["Level"][0]
     assert m.lobe_ior[spec_level] == pytest.approx(ior_from_f0(0.5 * f0_from_ior(1.45)), rel=1e-6)
-    # The one approximation: a tinted specular F0 on the glass lobe (exact Fresnel is used).
-    assert warnings == ["Material 'P': approximated Principled BSDF: Specular Tint on transmission ignored."]
+    assert warnings == []
 
 
 def test_mix_add_glossy_glass_transparent_and_emission():
@@ -217,14 +218,15 @@ def test_unsupported_nodes_fall_back_and_warn_once_per_material():
     np.testing.assert_allclose(m.lobe_color[r[0]], [0.3, 0.6, 0.9], rtol=1e-6)
     r = rows["Noisy"]
     assert m.lobe_kind[r].tolist() == [S.LOBE_DIFFUSE, S.LOBE_DIELECTRIC]
-    # The noise is evaluated per point (the material keeps its node graph); Refraction is the
-    # one approximation.
+    # The noise is evaluated per point (the material keeps its node graph); the Refraction BSDF
+    # is refraction only, with its Beckmann distribution: nothing approximated.
     assert m.graphs[m.names.index("Noisy")] is not None and m.graphs[m.names.index("SSS")] is None
-    assert len(warnings) == 2
+    assert m.lobe_refract_only[r].tolist() == [False, True]
+    assert m.lobe_distribution[r[1]] == S.DISTRIBUTIONS[bpy.data.materials["Noisy"].node_tree.nodes[
+        "Refraction BSDF"].distribution]
+    assert len(warnings) == 1
     sss_warning = next(w for w in warnings if "'SSS'" in w)
-    noisy_warning = next(w for w in warnings if "'Noisy'" in w)
     assert "Subsurface Scattering" in sss_warning
-    assert "Noise Texture" not in noisy_warning and "Refraction" in noisy_warning
 
 
 def test_uvs_follow_the_corners_also_under_negative_scale():

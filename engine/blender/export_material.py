@@ -8,9 +8,10 @@ builds its closures (blender/blender intern/cycles/kernel/svm/closure.h):
                      Cycles): Multiscatter GGX (Cycles' energy factor on GGX,
                      engine/bsdf/multiscatter.py), GGX, Beckmann, Ashikhmin-Shirley
   Metallic BSDF      Base Color (F0), Edge Tint (F82), Roughness -> GGX conductor (F82 tint);
-                     Physical Conductor (IOR / Extinction) -> F82 with the IOR's F0
+                     Physical Conductor (IOR / Extinction), anisotropy, thin film: the node
+                     evaluator (engine/nodes/shaders.py)
   Glass BSDF         Color, Roughness, IOR -> dielectric, exact Fresnel, sharp at roughness 0
-  Refraction BSDF    approximated as Glass (it gains the Fresnel reflection)
+  Refraction BSDF    the node evaluator (refraction only)
   Transparent BSDF   Color -> straight pass-through
   Emission           Color x Strength -> emission (two-sided, as Cycles' mesh emission)
   Mix Shader / Add Shader   weighted sums (a linked Fac: its default value, approximated)
@@ -19,8 +20,9 @@ builds its closures (blender/blender intern/cycles/kernel/svm/closure.h):
                      specular (exact Fresnel of IOR, Specular IOR Level, Specular Tint) over a
                      diffuse base weighted by 1 - the specular layer's albedo; Emission Color x
                      Strength; Alpha as stochastic transparency; Normal. Coat, sheen,
-                     subsurface (-> the diffuse base), anisotropy, diffuse roughness and thin
-                     film are approximated (ignored)
+                     subsurface (-> the diffuse base), diffuse roughness are approximated
+                     (ignored); anisotropy, thin film and Specular Tint on transmission go
+                     through the node evaluator
   other shader nodes the nearest supported closure: diffuse of their Color input
 
 Inputs may be constants, RGB / Value nodes, or Image Texture nodes (Color or Alpha output)
@@ -357,6 +359,8 @@ class _Converter:
             if kind == "ShaderNodeBsdfRefraction":
                 self.note(f"'{node.name}' Refraction BSDF (rendered as Glass: adds the Fresnel reflection)")
             dist = self.distribution(node, reflection=False)
+            if self._set(node, "Thin Film Thickness"):
+                self.note(f"'{node.name}' thin film (ignored)")
             color, tex = self.color(node, "Color")
             rough, rtex = self.value(node, "Roughness")
             ior = max(self.constant(node, "IOR"), 1e-5)
@@ -417,9 +421,16 @@ class _Converter:
             self.add(w, kind=LOBE_MICROFACET, fresnel=FRESNEL_NONE, color=tuple(color), color_tex=tex,
                      roughness=rough, roughness_tex=rtex, distribution=dist)
 
+    def _set(self, node, name: str) -> bool:
+        sock = node.inputs.get(name)
+        return sock is not None and (sock.is_linked or float(sock.default_value) != 0.0)
+
     def metallic(self, node, w):
         dist = self.distribution(node)
         rough, rtex = self.value(node, "Roughness")
+        for label, key in (("anisotropy", "Anisotropy"), ("thin film", "Thin Film Thickness")):
+            if self._set(node, key):
+                self.note(f"'{node.name}' {label} (ignored)")
         self.normal_input(node)
         if getattr(node, "fresnel_type", "F82") == "F82":
             f0, tex = self.color(node, "Base Color")

@@ -32,6 +32,11 @@ def Lambda(alpha, w):
     a2 = np.asarray(alpha, np.float64) ** 2
     z2 = w[:, 2] * w[:, 2]
     s = np.divide(a2 * (w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1]), z2, out=np.full(len(w), np.inf), where=z2 > 0.0)
+    return lambda_of(s)
+
+
+def lambda_of(s):
+    """Cycles' Lambda (K,) from s = alpha^2 tan^2 (K,) (bsdf_lambda_from_sqr_alpha_tan_n)."""
     a = 1.0 / np.sqrt(np.maximum(s, 0.39))
     lam = ((0.396 * a - 1.259) * a + 1.0) / ((2.181 * a + 3.535) * a)
     return np.where(s < 0.39, 0.0, lam)
@@ -61,14 +66,19 @@ def pdf_reflection(alpha, wo, wi):
     return _pdf(alpha, wo, normalize(wo + wi), ok)
 
 
-def sample_reflection(alpha, wo, u):
-    """(wi (N,3), h (N,3), pdf (N,)): h from D(h) cos_h, wi = wo mirrored about it."""
-    alpha = np.broadcast_to(np.asarray(alpha, np.float64), wo.shape[:1])
+def sample_normal(alpha, u):
+    """Microfacet normals h (N,3) of density D(h) cos_h from u (N,2) (Walter et al. eq. 28)."""
+    alpha = np.broadcast_to(np.asarray(alpha, np.float64), u.shape[:1])
     tan2 = -alpha * alpha * np.log1p(-np.clip(u[:, 0], 0.0, 1.0 - 1e-16))
     cos = 1.0 / np.sqrt(1.0 + tan2)
     sin = np.sqrt(np.maximum(1.0 - cos * cos, 0.0))
     phi = 2.0 * np.pi * u[:, 1]
-    h = np.stack([sin * np.cos(phi), sin * np.sin(phi), cos], axis=-1)
+    return np.stack([sin * np.cos(phi), sin * np.sin(phi), cos], axis=-1)
+
+
+def sample_reflection(alpha, wo, u):
+    """(wi (N,3), h (N,3), pdf (N,)): h from D(h) cos_h, wi = wo mirrored about it."""
+    h = sample_normal(alpha, u)
     wi = reflect(wo, h)
     ok = (wo[:, 2] > 0.0) & (wi[:, 2] > 0.0)
     return wi, h, _pdf(alpha, wo, h, ok)

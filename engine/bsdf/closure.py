@@ -156,6 +156,7 @@ class Closure:
             outward = normalize(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]))
         self.ns = normal_map(scene, mat, ns, ng, wo, prim, uv, outward) if mapped else ns
         self.t, self.b = sampling.frame_from_z(self.ns)
+        src.frame = (self.t, self.b)
         self.wo_local = _to_local(wo, self.t, self.b, self.ns)
         # Points whose wo is behind the authored winding: glass sees them from inside.
         self.inside = dot(wo, outward) < 0 if outward is not None else np.zeros(n, bool)

@@ -13,7 +13,8 @@ BSDF, and kernel/closure/bsdf_util.h):
   Principled dielectric specular and transmission: the exact dielectric Fresnel
       remapped from [F0(ior), 1] onto [f0, f90] (Cycles' GENERALIZED_SCHLICK
       with a negative exponent)                                             -> dielectric_remapped()
-Thin-film iridescence is not modelled.
+  Metallic BSDF, Physical Conductor: the exact conductor Fresnel of n + ik  -> conductor()
+Thin-film iridescence on any of them: engine/bsdf/thin_film.py.
 """
 import numpy as np
 
@@ -78,12 +79,58 @@ def f82_tint(f0, tint, cos):
     Schlick(f0, 1/7) * tint; clamped to [0, 1] as Cycles does (bsdf_util.h fresnel_f82tint_B,
     fresnel_f82). Cycles takes tint = min(Specular Tint, 1) and f0 = clamped Base Color.
     """
-    f0 = np.asarray(f0, dtype=np.float64)
-    b = f82_b(f0, tint)
+    return f82(np.asarray(f0, dtype=np.float64), f82_b(f0, tint), cos)
+
+
+def f82(f0, b, cos):
+    """The F82 model Schlick(f0, cos) - b cos (1 - cos)^6 clamped to [0, 1] (bsdf_util.h
+    fresnel_f82): f0, b (N,3), cos (N,) -> (N,3)."""
     cos = np.clip(np.asarray(cos, dtype=np.float64), 0.0, 1.0)
     m5 = _one_minus_cos_pow5(cos)
     F = f0 + (1.0 - f0) * m5 - b * (cos[:, None] * m5 * (1.0 - cos[:, None]))
     return np.clip(F, 0.0, 1.0)
+
+
+def f82_b_of_value(f0, F82):
+    """The F82 model's b (N,3) for its value F82 (N,3) at cos = 1/7 (bsdf_util.h fresnel_f82_B)."""
+    s = 1.0 - _COS_82
+    s5 = s ** 5
+    f0 = np.asarray(f0, dtype=np.float64)
+    return (f0 + (1.0 - f0) * s5 - F82) / (_COS_82 * s5 * s)
+
+
+def conductor_polarized(cos, eta1, n, k):
+    """Reflectances (R_s, R_p) (N,3) of a conductor n + ik (N,3) under a dielectric of index eta1
+    (N,) at cosine cos (N,) (Born and Wolf 14.4.1, as bsdf_util.h fresnel_conductor_polarized),
+    and the terms (u^2, v^2, u, v) the phase shifts need."""
+    c = np.asarray(cos, np.float64)[:, None]
+    e1 = np.asarray(eta1, np.float64)[:, None]
+    n2_k2 = n * n - k * k
+    t1 = n2_k2 - e1 * e1 * (1.0 - c * c)
+    t2 = np.sqrt(t1 * t1 + (2.0 * n * k) ** 2)
+    u2, v2 = np.maximum(0.5 * (t2 + t1), 0.0), np.maximum(0.5 * (t2 - t1), 0.0)
+    u, v = np.sqrt(u2), np.sqrt(v2)
+    num_s, den_s = (e1 * c - u) ** 2 + v2, (e1 * c + u) ** 2 + v2
+    t3, t4 = n2_k2 * c, 2.0 * n * k * c
+    num_p, den_p = (t3 - e1 * u) ** 2 + (t4 - e1 * v) ** 2, (t3 + e1 * u) ** 2 + (t4 + e1 * v) ** 2
+    R_s = np.divide(num_s, den_s, out=np.zeros_like(num_s), where=den_s > 0.0)
+    R_p = np.divide(num_p, den_p, out=np.zeros_like(num_p), where=den_p > 0.0)
+    return R_s, R_p, (u2, v2, u, v)
+
+
+def conductor(cos, n, k):
+    """Unpolarised reflectance (N,3) of a conductor of complex index n + ik (N,3) in vacuum at
+    cosine cos (N,) (bsdf_util.h fresnel_conductor)."""
+    R_s, R_p, _ = conductor_polarized(np.clip(cos, 0.0, 1.0), np.ones(len(cos)), n, k)
+    return 0.5 * (R_s + R_p)
+
+
+def conductor_fss(n, k):
+    """Mean Fresnel (N,3) Cycles gives a conductor (fresnel_conductor_Fss): the F82 model
+    through its values at 0 and ~82 degrees, its closed-form mean, clamped to [0, 1]."""
+    F0 = conductor(np.ones(len(n)), n, k)
+    b = f82_b_of_value(F0, conductor(np.full(len(n), _COS_82), n, k))
+    return np.clip(F0 + (1.0 - F0) / 21.0 - b / 126.0, 0.0, 1.0)
 
 
 def f82_b(f0, tint):

@@ -74,15 +74,17 @@ def G2(alpha, wo, wi):
     return 2.0 / (_sqrt_1_plus_a2_tan2(alpha, wo) + _sqrt_1_plus_a2_tan2(alpha, wi))
 
 
-def sample_vndf(alpha, wo, u):
+def sample_vndf(alpha, wo, u, alpha_y=None):
     """Microfacet normals h (N,3) distributed as the visible normals D_wo(h) = G1 (wo.h)+ D / wo.z.
 
-    wo (N,3) with wo.z > 0; u (N,2). Heitz 2018: stretch wo to the hemisphere configuration,
+    wo (N,3) with wo.z > 0; u (N,2); alpha_y (N,) the roughness along y where it differs from
+    alpha's along x (anisotropic GGX). Heitz 2018: stretch wo to the hemisphere configuration,
     sample the projected half disk (here through the concentric map, as Cycles), reproject,
     unstretch.
     """
     alpha = np.broadcast_to(np.asarray(alpha, dtype=np.float64), wo.shape[:1])
-    v = normalize(np.stack([alpha * wo[:, 0], alpha * wo[:, 1], wo[:, 2]], axis=-1))
+    alpha_y = alpha if alpha_y is None else alpha_y
+    v = normalize(np.stack([alpha * wo[:, 0], alpha_y * wo[:, 1], wo[:, 2]], axis=-1))
     len2 = v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1]
     inv_len = np.divide(1.0, np.sqrt(len2), out=np.zeros(len(v)), where=len2 > 0.0)
     # Basis (t1, t2, v); at normal incidence any tangent will do.
@@ -97,7 +99,7 @@ def sample_vndf(alpha, wo, u):
     p2 = (1.0 - s) * np.sqrt(np.maximum(0.0, 1.0 - p1 * p1)) + s * disk[:, 1]
     pz = np.sqrt(np.maximum(0.0, 1.0 - p1 * p1 - p2 * p2))
     nh = p1[:, None] * t1 + p2[:, None] * t2 + pz[:, None] * v
-    return normalize(np.stack([alpha * nh[:, 0], alpha * nh[:, 1], np.maximum(0.0, nh[:, 2])],
+    return normalize(np.stack([alpha * nh[:, 0], alpha_y * nh[:, 1], np.maximum(0.0, nh[:, 2])],
                               axis=-1))
 
 

@@ -25,9 +25,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..scene import (DISTRIBUTIONS, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE,
-                     LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG, LOBE_TOON, LOBE_TRANSLUCENT, LOBE_TRANSPARENT,
-                     TOON_DIFFUSE, TOON_GLOSSY, part_digest)
+from ..scene import (DISTRIBUTIONS, FRESNEL_CONDUCTOR, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE,
+                     LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG, LOBE_TOON,
+                     LOBE_TRANSLUCENT, LOBE_TRANSPARENT, TOON_DIFFUSE, TOON_GLOSSY, part_digest)
 from . import light_path
 from .closures import closures
 from .graph import Graph
@@ -39,9 +39,12 @@ LOBE_OF = {"diffuse": LOBE_DIFFUSE, "phong": LOBE_PHONG, "microfacet": LOBE_MICR
            "dielectric": LOBE_DIELECTRIC, "transparent": LOBE_TRANSPARENT, "oren_nayar": LOBE_OREN_NAYAR,
            "translucent": LOBE_TRANSLUCENT, "toon": LOBE_TOON}
 TOON_COMPONENTS = {"DIFFUSE": TOON_DIFFUSE, "GLOSSY": TOON_GLOSSY}
-FRESNEL_OF = {"none": FRESNEL_NONE, "f82": FRESNEL_F82, "dielectric": FRESNEL_DIELECTRIC}
+FRESNEL_OF = {"none": FRESNEL_NONE, "f82": FRESNEL_F82, "dielectric": FRESNEL_DIELECTRIC,
+              "conductor": FRESNEL_CONDUCTOR}
 # Lobe inputs a closure may carry, and whether each is a colour or vector (3 components).
-PARAMS = {"color": True, "tint": True, "roughness": False, "ior": False, "exponent": False}
+# aspect and tangent (anisotropy) are per point only: the shader nodes give them the point axis.
+PARAMS = {"color": True, "tint": True, "roughness": False, "ior": False, "exponent": False,
+          "film_thickness": False, "film_ior": False, "aspect": False, "tangent": True}
 # One plausible shading point: what the probe run reads.
 _PROBE = dict(P=np.zeros((1, 3)), N=np.array([[0.0, 0.0, 1.0]]), Ng=np.array([[0.0, 0.0, 1.0]]),
               I=np.array([[0.0, 0.0, 1.0]]), backfacing=np.zeros(1, bool), uv=np.full((1, 3), 0.5),
@@ -194,6 +197,8 @@ def compile_material(graph: Graph) -> MaterialProgram:
             lobe["distribution"] = TOON_COMPONENTS[c.params["component"]]
         if "layer" in c.params:
             lobe["layer"] = tags[c.params["layer"]]
+        if c.params.get("refract_only"):
+            lobe["refract_only"] = True
         lobes.append(lobe)
         varying.append(tuple(names))
     emitters = [c.weight for c in made if c.kind == "emission"]

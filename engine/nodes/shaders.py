@@ -4,10 +4,13 @@ closures from them (svm/closure.h), and what Ember approximates.
 A BSDF node makes closures whose kind is a lobe's ("diffuse", "microfacet", ...), whose weight
 is its mixture weight and whose params are the lobe's inputs, per point or constant:
   color, tint (3), roughness (Blender's, alpha = roughness^2; Oren-Nayar's sigma), ior, exponent
-  (Phong), fresnel ("none", "f82", "dielectric": the microfacet lobe's model), distribution
-  ("GGX", "MULTI_GGX": the node's microfacet distribution), normal (3, unnormalised
+  (Phong), fresnel ("none", "f82", "dielectric", "conductor": the microfacet lobe's model; on
+  glass "dielectric" makes tint the Fresnel's F0 tint), distribution ("GGX", "MULTI_GGX",
+  "BECKMANN", "ASHIKHMIN_SHIRLEY": the node's microfacet distribution), normal (3, unnormalised
   world direction where the node's Normal is linked), layer (the tag of the closure this one
-  lies under: it keeps 1 - that lobe's albedo, Cycles' closure layering).
+  lies under: it keeps 1 - that lobe's albedo, Cycles' closure layering), aspect and tangent
+  (anisotropy, per point: alpha_x = alpha / aspect along the world direction tangent),
+  film_thickness and film_ior (a thin film on the Fresnel), refract_only (Refraction BSDF).
 Every closure has a tag unique within its node (the node's label and its part), so layers
 survive Mix and Add Shader. A closure of constant weight at most CUTOFF is left out, as Cycles
 leaves out closures lighter than CLOSURE_WEIGHT_CUTOFF.
@@ -22,6 +25,7 @@ import numpy as np
 
 from .base import column, node, scalar, triple
 from .closures import Closure
+from .geometry import surface_tangent
 
 CUTOFF = 1e-5  # Cycles' CLOSURE_WEIGHT_CUTOFF
 MAX_PHONG_EXPONENT = 1e6  # Phong stays accurate up to here (engine/bsdf/phong.py)
@@ -73,14 +77,17 @@ def _linked_or_set(node, name: str, default: float) -> bool:
     return socket is not None and (socket.link is not None or float(np.max(socket.value)) != default)
 
 
-_REFLECTION_ONLY = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy", "ShaderNodeBsdfMetallic")
+_BECKMANN = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy", "ShaderNodeBsdfMetallic", "ShaderNodeBsdfGlass",
+             "ShaderNodeBsdfRefraction")
+_ASHIKHMIN_SHIRLEY = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy")
 
 
 def _distribution(node) -> str:
-    """The node's distribution as a lobe parameter: Multiscatter GGX, GGX, and Beckmann or
-    Ashikhmin-Shirley on the reflection lobes (Glossy, Metallic); GGX for the others."""
+    """The node's distribution as a lobe parameter: Multiscatter GGX, GGX, Beckmann (Glossy,
+    Metallic, Glass, Refraction) and Ashikhmin-Shirley (Glossy) where Blender offers them."""
     dist = node.prop("distribution", "GGX")
-    if dist == "MULTI_GGX" or (dist in ("BECKMANN", "ASHIKHMIN_SHIRLEY") and node.kind in _REFLECTION_ONLY):
+    if (dist == "MULTI_GGX" or (dist == "BECKMANN" and node.kind in _BECKMANN)
+            or (dist == "ASHIKHMIN_SHIRLEY" and node.kind in _ASHIKHMIN_SHIRLEY)):
         return dist
     return "GGX"
 
@@ -103,60 +110,125 @@ def diffuse(node, inputs, state):
                              **_normal(node, inputs))}
 
 
+# Anisotropy (svm/closure.h): the Glossy BSDF's Anisotropy a in [-0.99, 0.99] gives alpha_x =
+# alpha (1 - a), alpha_y = alpha / (1 - a) for a >= 0, alpha / (1 + a) and alpha (1 + a) below;
+# the Metallic and Principled BSDFs' a in [0, 1] gives alpha_x = alpha / s, alpha_y = alpha s
+# with s = sqrt(1 - 0.9 a). The lobe takes the aspect s of alpha_x = alpha / s, alpha_y = alpha
+# s, and the tangent: the Tangent input, or where it is unlinked Cycles' default (its shader
+# graph links the Geometry node's Tangent: the radial tangent about the object's Z through the
+# generated coordinates), turned about the normal by Rotation x 2 pi.
+
+def _aspect_glossy(a):
+    a = np.clip(a, -0.99, 0.99)
+    return np.where(np.abs(a) <= 1e-4, 1.0, np.where(a < 0.0, 1.0 + a, 1.0 / (1.0 - np.where(a < 0.0, 0.0, a))))
+
+
+def _aspect_principled(a):
+    return np.sqrt(1.0 - 0.9 * np.clip(a, 0.0, 1.0))
+
+
+_ANISOTROPY = {"ShaderNodeBsdfAnisotropic": ("Anisotropy", "Rotation", _aspect_glossy),
+               "ShaderNodeBsdfMetallic": ("Anisotropy", "Rotation", _aspect_principled),
+               "ShaderNodeBsdfPrincipled": ("Anisotropic", "Anisotropic Rotation", _aspect_principled)}
+
+
+def _anisotropic(node) -> bool:
+    """The node may be anisotropic somewhere: its anisotropy is linked or set."""
+    name = _ANISOTROPY[node.kind][0]
+    return not node.prop("phong", False) and _linked_or_set(node, name, 0.0)
+
+
+def _anisotropy_reads(node, outputs):
+    """The state an anisotropic node reads: the normal, and the default tangent's inputs."""
+    if not _anisotropic(node):
+        return ()
+    socket = node.input("Tangent")
+    return ("N",) if socket is not None and socket.link is not None else ("N", "generated", "object_from_world")
+
+
+def _anisotropy(node, inputs, state, normal: dict) -> dict:
+    """{"aspect": (N,), "tangent": (N,3)} per point, or {} where the node is isotropic."""
+    if not _anisotropic(node):
+        return {}
+    name, rotation, aspect_of = _ANISOTROPY[node.kind]
+    base = state.unshifted
+    n = base.N
+    if "normal" in normal:
+        n = np.broadcast_to(normal["normal"], (state.n, 3))
+        n = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)
+    socket = node.input("Tangent")
+    if socket is not None and socket.link is not None:
+        t = np.broadcast_to(triple(inputs["Tangent"]), (state.n, 3))
+    else:
+        t = surface_tangent(base.generated, base.N, base.object_from_world)
+    angle = column(np.broadcast_to(2.0 * np.pi * scalar(inputs[rotation]), (state.n,)))
+    # Rodrigues' rotation about n, as Cycles' rotate_around_axis.
+    t = t * np.cos(angle) + np.cross(n, t) * np.sin(angle) + n * (np.sum(n * t, axis=-1, keepdims=True)
+                                                                  * (1.0 - np.cos(angle)))
+    return {"aspect": np.broadcast_to(aspect_of(scalar(inputs[name])), (state.n,)).copy(), "tangent": t}
+
+
 def _glossy_notes(node) -> list:
     notes = _distribution_notes(node)
-    if _linked_or_set(node, "Anisotropy", 0.0):
-        notes.append("anisotropy rendered isotropic")
+    if _anisotropic(node) and node.prop("distribution", "GGX") == "ASHIKHMIN_SHIRLEY":
+        notes.append("anisotropy of Ashikhmin-Shirley rendered isotropic")
     return notes
 
 
-@node("ShaderNodeBsdfAnisotropic", "Shader", notes=_glossy_notes)
+@node("ShaderNodeBsdfAnisotropic", "Shader", notes=_glossy_notes, reads=_anisotropy_reads)
 def glossy(node, inputs, state):
     color, rough, normal = triple(inputs["Color"]), scalar(inputs["Roughness"]), _normal(node, inputs)
     if node.prop("phong", False):
         return {"BSDF": _phong(ONES, node.label, np.zeros(3), color, rough, **normal)}
     return {"BSDF": _closure("microfacet", ONES, node.label, fresnel="none", color=color, roughness=rough,
-                             distribution=_distribution(node), **normal)}
+                             distribution=_distribution(node), **normal, **_anisotropy(node, inputs, state, normal))}
 
 
-def _metallic_notes(node) -> list:
-    notes = _distribution_notes(node)
-    if node.prop("fresnel_type", "F82") != "F82":
-        notes.append("physical conductor rendered as F82 with its normal-incidence colour")
-    return notes
+def _film(inputs, thickness: str, ior: str) -> dict:
+    """A thin film's parameters where its thickness may exceed Cycles' cutoff (0.1 nm)."""
+    d = np.maximum(scalar(inputs[thickness]), 0.0)
+    if not np.ndim(d) and float(d) <= 0.1:
+        return {}
+    return {"film_thickness": d, "film_ior": np.maximum(scalar(inputs[ior]), 1e-5)}
 
 
-@node("ShaderNodeBsdfMetallic", "Shader", notes=_metallic_notes)
+@node("ShaderNodeBsdfMetallic", "Shader", notes=_distribution_notes, reads=_anisotropy_reads)
 def metallic(node, inputs, state):
+    """Cycles' Metallic BSDF: F82 tint (Base Color, Edge Tint) or the physical conductor of
+    complex index IOR + i Extinction; thin film and anisotropy on either."""
     rough, normal = scalar(inputs["Roughness"]), _normal(node, inputs)
     if node.prop("fresnel_type", "F82") == "F82":
-        f0, tint = triple(inputs["Base Color"]), triple(inputs["Edge Tint"])
+        color, tint, model = np.clip(triple(inputs["Base Color"]), 0.0, 1.0), np.clip(triple(inputs["Edge Tint"]), 0, 1), "f82"
     else:
-        n, k = triple(inputs["IOR"]), triple(inputs["Extinction"])
-        f0, tint = ((n - 1) ** 2 + k ** 2) / np.maximum((n + 1) ** 2 + k ** 2, 1e-12), ONES
-    f0 = np.clip(f0, 0.0, 1.0)
+        color, tint, model = np.maximum(triple(inputs["IOR"]), 0.0), np.maximum(triple(inputs["Extinction"]), 0.0), \
+            "conductor"
     if node.prop("phong", False):
+        f0 = color if model == "f82" else ((color - 1) ** 2 + tint ** 2) / np.maximum((color + 1) ** 2 + tint ** 2, 1e-12)
         return {"BSDF": _phong(ONES, node.label, np.zeros(3), f0, rough, **normal)}
-    return {"BSDF": _closure("microfacet", ONES, node.label, fresnel="f82", color=f0, tint=np.clip(tint, 0.0, 1.0),
-                             roughness=rough, distribution=_distribution(node), **normal)}
+    film = _film(inputs, "Thin Film Thickness", "Thin Film IOR") if "Thin Film Thickness" in inputs else {}
+    return {"BSDF": _closure("microfacet", ONES, node.label, fresnel=model, color=color, tint=tint,
+                             roughness=rough, distribution=_distribution(node), **normal, **film,
+                             **_anisotropy(node, inputs, state, normal))}
 
 
-def _refraction_notes(node) -> list:
-    notes = _distribution_notes(node)
-    if node.kind == "ShaderNodeBsdfRefraction":
-        notes.append("Refraction BSDF rendered as Glass (it gains the Fresnel reflection)")
-    return notes
-
-
-def _glass(node, inputs, state):
+@node("ShaderNodeBsdfGlass", "Shader", notes=_distribution_notes)
+def glass(node, inputs, state):
+    """Cycles' Glass BSDF: reflection and refraction tinted by Color, a thin film on its Fresnel."""
     color = triple(inputs["Color"])
+    film = _film(inputs, "Thin Film Thickness", "Thin Film IOR") if "Thin Film Thickness" in inputs else {}
     return {"BSDF": _closure("dielectric", ONES, node.label, color=color, tint=color,
                              roughness=scalar(inputs["Roughness"]), ior=np.maximum(scalar(inputs["IOR"]), 1e-5),
+                             distribution=_distribution(node), **_normal(node, inputs), **film)}
+
+
+@node("ShaderNodeBsdfRefraction", "Shader", notes=_distribution_notes)
+def refraction(node, inputs, state):
+    """Cycles' Refraction BSDF: the refraction of a dielectric interface alone, without its
+    Fresnel factor (none under total internal reflection)."""
+    color = triple(inputs["Color"])
+    return {"BSDF": _closure("dielectric", ONES, node.label, color=color, tint=np.zeros(3), refract_only=True,
+                             roughness=scalar(inputs["Roughness"]), ior=np.maximum(scalar(inputs["IOR"]), 1e-5),
                              distribution=_distribution(node), **_normal(node, inputs))}
-
-
-glass = node("ShaderNodeBsdfGlass", "Shader", notes=_refraction_notes)(_glass)
-refraction = node("ShaderNodeBsdfRefraction", "Shader", notes=_refraction_notes)(_glass)
 
 
 @node("ShaderNodeBsdfTransparent", "Shader")
@@ -171,28 +243,24 @@ def holdout(node, inputs, state):
 
 
 _PRINCIPLED_IGNORED = (("coat", "Coat Weight", 0.0), ("sheen", "Sheen Weight", 0.0),
-                       ("subsurface", "Subsurface Weight", 0.0), ("anisotropy", "Anisotropic", 0.0),
-                       ("thin film", "Thin Film Thickness", 0.0))
+                       ("subsurface", "Subsurface Weight", 0.0))
 
 
 def _principled_notes(node) -> list:
     notes = _distribution_notes(node)
     notes += [f"{label} ignored" for label, name, default in _PRINCIPLED_IGNORED if _linked_or_set(node, name, default)]
-    if node.input("Transmission Weight").link is not None or float(node.input("Transmission Weight").value) > 0:
-        tint = node.input("Specular Tint")
-        if tint.link is not None or not np.allclose(tint.value, 1.0):
-            notes.append("Specular Tint on transmission ignored")
     return notes
 
 
-@node("ShaderNodeBsdfPrincipled", "Shader", notes=_principled_notes)
+@node("ShaderNodeBsdfPrincipled", "Shader", notes=_principled_notes, reads=_anisotropy_reads)
 def principled(node, inputs, state):
     """Cycles' Principled BSDF (svm/closure.h), top layer first: transparency (1 - Alpha);
     then, of what Alpha keeps, metallic (an F82 conductor: F0 = Base Color, F82 tint = Specular
-    Tint), transmission (glass whose refraction is tinted sqrt(Base Color), its reflection
-    white) of what metallic leaves, and a
+    Tint), transmission (glass whose refraction is tinted sqrt(Base Color), its Fresnel's F0
+    tinted by Specular Tint) of what metallic leaves, and a
     dielectric specular layer (Fresnel of the IOR rescaled by Specular IOR Level, tinted by
-    Specular Tint) over a diffuse base of the rest; Emission Color x Strength."""
+    Specular Tint) over a diffuse base of the rest; Emission Color x Strength. Anisotropy on
+    the metal and the specular (Cycles' glass is isotropic), a thin film on all three."""
     label = node.label
     base = triple(inputs["Base Color"])
     rough = scalar(inputs["Roughness"])
@@ -204,6 +272,8 @@ def principled(node, inputs, state):
     alpha = np.clip(scalar(inputs["Alpha"]), 0.0, 1.0)
     normal = _normal(node, inputs)
     dist = _distribution(node)
+    film = _film(inputs, "Thin Film Thickness", "Thin Film IOR")
+    aniso = _anisotropy(node, inputs, state, normal)
     w = ONES
     out = _closure("transparent", w * column(1.0 - alpha), label + "/alpha", color=ONES)
     w = w * column(alpha)
@@ -224,16 +294,16 @@ def principled(node, inputs, state):
                         color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=ONES, roughness=rough, ior=ior, **normal)
         return {"BSDF": out + emission}
     out += _closure("microfacet", w * column(metal), label + "/metallic", fresnel="f82", color=np.clip(base, 0, 1),
-                    tint=np.minimum(spec_tint, 1.0), roughness=rough, distribution=dist, **normal)
+                    tint=np.minimum(spec_tint, 1.0), roughness=rough, distribution=dist, **normal, **film, **aniso)
     w = w * column(1.0 - metal)
     out += _closure("dielectric", w * column(transmission), label + "/transmission",
-                    color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=ONES, roughness=rough, ior=ior, distribution=dist,
-                    **normal)
+                    color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=spec_tint, fresnel="dielectric", roughness=rough,
+                    ior=ior, distribution=dist, **normal, **film)
     w = w * column(1.0 - transmission)
     top = ()
-    if np.ndim(eta) or eta != 1.0:
+    if np.ndim(eta) or eta != 1.0 or film:
         top = _closure("microfacet", w, label + "/specular", fresnel="dielectric", tint=spec_tint,
-                       roughness=rough, ior=eta, distribution=dist, **normal)
+                       roughness=rough, ior=eta, distribution=dist, **normal, **film, **aniso)
     layer = {"layer": top[0].tag} if top else {}
     out += top + _diffuse(w, label + "/base", base, scalar(inputs["Diffuse Roughness"]) if "Diffuse Roughness" in inputs
                           else 0.0, **layer, **normal)

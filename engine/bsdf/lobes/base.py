@@ -62,7 +62,8 @@ class Rows:
     def __getattr__(self, name: str):
         if name.startswith("_"):
             raise AttributeError(name)
-        value = np.take(getattr(self._params, name), self._i, axis=0)
+        value = getattr(self._params, name)
+        value = None if value is None else np.take(value, self._i, axis=0)  # None: an optional field
         setattr(self, name, value)  # read once
         return value
 

@@ -12,16 +12,17 @@ from ... import textures
 
 class Sources:
     """Where K pairs' inputs come from besides the table: uv (N,2) per point (None when no
-    texture is in the batch), and `values` {input name: (values (K,...), has (K,) bool)} that
-    node programs computed for some of the pairs."""
+    texture is in the batch), `values` {input name: (values (K,...), has (K,) bool)} that
+    node programs computed for some of the pairs, and frame (t, b) (N,3 each): the points'
+    shading frames' tangents (where a lobe orients itself by a world direction)."""
 
-    def __init__(self, uv, values=None):
-        self.uv, self.values = uv, values or {}
+    def __init__(self, uv, values=None, frame=None):
+        self.uv, self.values, self.frame = uv, values or {}, frame
 
     def take(self, rows: np.ndarray) -> "Sources":
         if not self.values:
             return self
-        return Sources(self.uv, {k: (v[rows], has[rows]) for k, (v, has) in self.values.items()})
+        return Sources(self.uv, {k: (v[rows], has[rows]) for k, (v, has) in self.values.items()}, self.frame)
 
     def apply(self, name: str, a: np.ndarray) -> np.ndarray:
         """a (K,...) with the programs' values of input `name` where they have one."""
@@ -75,3 +76,31 @@ def ior(m, lobe: np.ndarray, src: Sources) -> np.ndarray:
 def exponent(m, lobe: np.ndarray, src: Sources) -> np.ndarray:
     """(K,) Phong exponent."""
     return src.apply("exponent", m.lobe_exponent[lobe]) if "exponent" in src.values else m.lobe_exponent[lobe]
+
+
+def film(m, lobe: np.ndarray, src: Sources):
+    """(thickness (K,) nm, index (K,)) of a thin film on the lobe's Fresnel."""
+    d, n = m.lobe_film_thickness[lobe], m.lobe_film_ior[lobe]
+    if "film_thickness" in src.values or "film_ior" in src.values:
+        d, n = src.apply("film_thickness", d.copy()), src.apply("film_ior", n.copy())
+    return d, n
+
+
+def anisotropy(point: np.ndarray, src: Sources):
+    """(aspect (K,), tangent azimuth (K,2) = (cos, sin) in the points' shading frames) of the
+    pairs whose programs give an anisotropy, alpha_x = alpha / aspect, alpha_y = alpha aspect
+    (Cycles' alpha_x along the tangent); None where no pair has one. A tangent along the
+    normal keeps azimuth 0."""
+    if "aspect" not in src.values or src.frame is None:
+        return None
+    aspect = src.apply("aspect", np.ones(len(point)))
+    tangent = src.apply("tangent", np.zeros((len(point), 3)))
+    t, b = src.frame
+    x = np.einsum("ij,ij->i", tangent, t[point])
+    y = np.einsum("ij,ij->i", tangent, b[point])
+    r = np.hypot(x, y)
+    ok = r > 0.0
+    aspect = np.where(ok, aspect, 1.0)
+    azimuth = np.stack([np.divide(x, r, out=np.ones_like(r), where=ok), np.divide(y, r, out=np.zeros_like(r), where=ok)],
+                       axis=1)
+    return aspect, azimuth

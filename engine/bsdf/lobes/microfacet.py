@@ -10,52 +10,79 @@ compensation (engine/bsdf/multiscatter.py) with the mean Fresnel Fss of their mo
 of wo applied to eval, to mirror samples' weights and to the albedo estimates. Rows of
 DIST_BECKMANN (Glossy and Metallic) use the Beckmann distribution (engine/bsdf/beckmann.py),
 rows of DIST_ASHIKHMIN_SHIRLEY (Glossy) Cycles' Ashikhmin-Shirley lobe
-(engine/bsdf/ashikhmin_shirley.py, its own alpha clamp and mirror threshold)."""
+(engine/bsdf/ashikhmin_shirley.py, its own alpha clamp and mirror threshold).
+
+Anisotropy (GGX, Multiscatter GGX, Beckmann): rows whose programs give an aspect s and a
+tangent have alpha_x = alpha / s along the tangent and alpha_y = alpha s across it, each at most
+1 (Cycles' bsdf_microfacet_ggx_setup), and use engine/bsdf/anisotropic.py; a mirror when
+alpha_x alpha_y <= 2e-10; the energy compensation and the layering tables read the roughness
+(alpha_x alpha_y)^(1/4), as Cycles'. FRESNEL_CONDUCTOR rows (the Metallic BSDF's Physical
+Conductor) take the exact conductor Fresnel of n = colour, k = tint. A thin film (thickness,
+index) replaces the F82, conductor or dielectric Fresnel by its iridescent one
+(engine/bsdf/thin_film.py) as Cycles' microfacet_fresnel does; Cycles' estimate of such a
+lobe's albedo is that Fresnel at wo (no table), which the layering then takes."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from ...scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_DIELECTRIC, FRESNEL_F82,
-                      LOBE_MICROFACET, RAY_GLOSSY)
-from ...vec import dot, normalize
-from .. import ashikhmin_shirley, beckmann, fresnel, layering, microfacet, multiscatter
+from ...scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_CONDUCTOR, FRESNEL_DIELECTRIC,
+                      FRESNEL_F82, LOBE_MICROFACET, RAY_GLOSSY)
+from ...vec import dot, max3, normalize
+from .. import anisotropic, ashikhmin_shirley, beckmann, fresnel, layering, microfacet, multiscatter, thin_film
 from . import inputs
 from .base import CLASS_GLOSSY, LABEL_GLOSSY, LobeSample, SurfaceLobe, SurfaceParams, mean_albedo
 
 _MIRROR_XY = np.array([-1.0, -1.0, 1.0])  # reflection about the normal
-# The formulas of each MicrofacetParams.model: GGX (also Multiscatter GGX), Beckmann, A-S.
-MODEL_GGX, MODEL_BECKMANN, MODEL_ASHIKHMIN = 0, 1, 2
-_MODELS = (microfacet, beckmann, ashikhmin_shirley)
+# The formulas of each MicrofacetParams.model: GGX (also Multiscatter GGX), Beckmann, A-S,
+# and anisotropic GGX and Beckmann.
+MODEL_GGX, MODEL_BECKMANN, MODEL_ASHIKHMIN, MODEL_GGX_ANISO, MODEL_BECKMANN_ANISO = 0, 1, 2, 3, 4
+_MODELS = (microfacet, beckmann, ashikhmin_shirley, anisotropic.GGX_ANISO, anisotropic.BECKMANN_ANISO)
+_ANISO = {MODEL_GGX: MODEL_GGX_ANISO, MODEL_BECKMANN: MODEL_BECKMANN_ANISO}
+_COS_82 = 1.0 / 7.0
 
 
 def _groups(p):
-    """[(formula module, its rows (R,) or None for all rows)] of the models present."""
+    """[(formula module, its rows (R,) or None for all rows, their alpha: (R,) or, for the
+    anisotropic models, (R,4) = (alpha_x, alpha_y, tangent azimuth's cos, sin))]."""
     model = p.model
     if not model.any():
-        return [(microfacet, None)]
-    return [(_MODELS[k], np.flatnonzero(model == k)) for k in np.unique(model)]
+        return [(microfacet, None, p.alpha)]
+    out = []
+    for k in np.unique(model):
+        r = np.flatnonzero(model == k)
+        a = p.alpha[r] if k < MODEL_GGX_ANISO else np.column_stack([p.alpha[r], p.alpha_y[r], p.azimuth[r]])
+        out.append((_MODELS[k], r, a))
+    return out
 
 
 @dataclass
 class MicrofacetParams(SurfaceParams):
-    """tint (K,3); roughness (K,) Blender's; alpha (K,) GGX (roughness^2, or Filter Glossy's);
-    ior (K,); fresnel (K,) FRESNEL_*; multi (K,) bool: DIST_MULTI_GGX; model (K,) int8
-    MODEL_* (the formulas of the row's distribution)."""
+    """tint (K,3); roughness (K,) Blender's ((alpha_x alpha_y)^(1/4) where anisotropic); alpha
+    (K,) GGX (roughness^2, or Filter Glossy's; alpha_x where anisotropic); alpha_y (K,) and
+    azimuth (K,2) the tangent's (cos, sin) in the shading frame (used by the anisotropic
+    models); ior (K,); fresnel (K,) FRESNEL_*; multi (K,) bool: DIST_MULTI_GGX; model (K,)
+    int8 MODEL_* (the formulas of the row's distribution); film, film_ior (K,) the thin film
+    (thickness nm, index)."""
 
     tint: np.ndarray
     roughness: np.ndarray
     alpha: np.ndarray
+    alpha_y: np.ndarray
+    azimuth: np.ndarray
     ior: np.ndarray
     fresnel: np.ndarray
     multi: np.ndarray
     model: np.ndarray
+    film: np.ndarray
+    film_ior: np.ndarray
 
 
 def fresnel_color(p: MicrofacetParams, cos: np.ndarray) -> np.ndarray:
     """Fresnel colour F (K,3) at cosines cos (K,) between wo and the microfacet normal."""
     F = p.color.copy()  # FRESNEL_NONE: the Glossy colour
+    film = p.film > thin_film.CUTOFF
     r = np.flatnonzero(p.fresnel == FRESNEL_F82)
     if len(r):
         F[r] = fresnel.f82_tint(p.color[r], np.minimum(p.tint[r], 1.0), cos[r])
@@ -63,7 +90,32 @@ def fresnel_color(p: MicrofacetParams, cos: np.ndarray) -> np.ndarray:
     if len(r):
         eta = p.ior[r]
         F[r] = fresnel.dielectric_remapped(fresnel.f0_from_ior(eta)[:, None] * p.tint[r], cos[r], eta)
+    r = np.flatnonzero(p.fresnel == FRESNEL_CONDUCTOR)
+    if len(r):
+        F[r] = fresnel.conductor(cos[r], p.color[r], p.tint[r])
+    if film.any():
+        _iridescent(p, cos, np.flatnonzero(film), F)
     return F
+
+
+def _iridescent(p, cos, rows, F):
+    """F[rows] of rows with a thin film: over the conductor (F82 through the n, k it stands
+    for) or the dielectric (then scaled to the specular's F0)."""
+    fr, c, d, n_f = p.fresnel[rows], cos[rows], p.film[rows], p.film_ior[rows]
+    r = np.flatnonzero(fr == FRESNEL_F82)
+    if len(r):
+        f0 = p.color[rows[r]]
+        g = fresnel.f82(f0, fresnel.f82_b(f0, np.minimum(p.tint[rows[r]], 1.0)), np.full(len(r), _COS_82))
+        n, k = thin_film.nk_from_f82(f0, g)
+        F[rows[r]] = thin_film.over_conductor(c[r], d[r], n_f[r], n, k, F82=g)
+    r = np.flatnonzero(fr == FRESNEL_CONDUCTOR)
+    if len(r):
+        F[rows[r]] = thin_film.over_conductor(c[r], d[r], n_f[r], p.color[rows[r]], p.tint[rows[r]])
+    r = np.flatnonzero(fr == FRESNEL_DIELECTRIC)
+    if len(r):
+        eta = p.ior[rows[r]]
+        f0 = np.clip(fresnel.f0_from_ior(eta)[:, None] * p.tint[rows[r]], 0.0, 1.0)
+        F[rows[r]] = thin_film.scale_to_f0(thin_film.over_dielectric(c[r], d[r], n_f[r], eta), f0, eta)
 
 
 def mean_fresnel(p: MicrofacetParams) -> np.ndarray:
@@ -77,7 +129,26 @@ def mean_fresnel(p: MicrofacetParams) -> np.ndarray:
     if len(r):
         eta = p.ior[r]
         Fss[r] = multiscatter.fss_remapped(fresnel.f0_from_ior(eta)[:, None] * p.tint[r], eta)
+    r = np.flatnonzero(p.fresnel == FRESNEL_CONDUCTOR)
+    if len(r):
+        Fss[r] = fresnel.conductor_fss(p.color[r], p.tint[r])
     return Fss
+
+
+def _anisotropic(p: MicrofacetParams, aspect: np.ndarray, azimuth: np.ndarray) -> None:
+    """Rows of aspect != 1 (GGX and Beckmann) become anisotropic: alpha_x = alpha / aspect,
+    alpha_y = alpha aspect, each at most 1; their roughness the tables read (alpha_x
+    alpha_y)^(1/4)."""
+    r = np.flatnonzero((aspect != 1.0) & ((p.model == MODEL_GGX) | (p.model == MODEL_BECKMANN)))
+    if not len(r):
+        return
+    ax, ay = np.minimum(p.alpha[r] / aspect[r], 1.0), np.minimum(p.alpha[r] * aspect[r], 1.0)
+    p.alpha, p.alpha_y, p.azimuth = p.alpha.copy(), p.alpha_y.copy(), azimuth
+    p.alpha[r], p.alpha_y[r] = ax, ay
+    p.roughness = p.roughness.copy()
+    p.roughness[r] = np.sqrt(np.sqrt(ax * ay))
+    p.model = p.model.copy()
+    p.model[r] = np.where(p.model[r] == MODEL_GGX, MODEL_GGX_ANISO, MODEL_BECKMANN_ANISO)
 
 
 def energy(p: MicrofacetParams, wo: np.ndarray, wi=None):
@@ -126,9 +197,15 @@ class Microfacet(SurfaceLobe):
         a = np.flatnonzero(model == MODEL_ASHIKHMIN)
         if len(a):
             alpha[a] = ashikhmin_shirley.alpha(roughness[a])
-        p = MicrofacetParams(color=color, delta=np.zeros(len(lobe), bool), tint=inputs.tint(m, lobe, color, src),
-                             roughness=roughness, alpha=alpha, ior=inputs.ior(m, lobe, src), fresnel=m.lobe_fresnel[lobe],
-                             multi=dist == DIST_MULTI_GGX, model=model)
+        film, film_ior = inputs.film(m, lobe, src)
+        k = len(lobe)
+        p = MicrofacetParams(color=color, delta=np.zeros(k, bool), tint=inputs.tint(m, lobe, color, src),
+                             roughness=roughness, alpha=alpha, alpha_y=alpha, azimuth=np.zeros((k, 2)),
+                             ior=inputs.ior(m, lobe, src), fresnel=m.lobe_fresnel[lobe], multi=dist == DIST_MULTI_GGX,
+                             model=model, film=film, film_ior=film_ior)
+        aniso = inputs.anisotropy(point, src)
+        if aniso is not None:
+            _anisotropic(p, *aniso)
         p.delta = self.is_delta(p)
         return p
 
@@ -137,6 +214,9 @@ class Microfacet(SurfaceLobe):
         a = np.flatnonzero(p.model == MODEL_ASHIKHMIN)
         if len(a):
             delta[a] = ashikhmin_shirley.is_delta(p.alpha[a])
+        a = np.flatnonzero(p.model >= MODEL_GGX_ANISO)
+        if len(a):
+            delta[a] = microfacet.is_delta(np.sqrt(p.alpha[a] * p.alpha_y[a]))
         return delta
 
     def albedo(self, p, wo):
@@ -156,9 +236,9 @@ class Microfacet(SurfaceLobe):
         if groups[0][1] is None:
             return microfacet.eval_reflection(p.alpha, wo, wi, F), microfacet.pdf_reflection(p.alpha, wo, wi)
         f, pdf = np.empty((len(p), 3)), np.empty(len(p))
-        for model, r in groups:
-            f[r] = model.eval_reflection(p.alpha[r], wo[r], wi[r], F[r])
-            pdf[r] = model.pdf_reflection(p.alpha[r], wo[r], wi[r])
+        for model, r, a in groups:
+            f[r] = model.eval_reflection(a, wo[r], wi[r], F[r])
+            pdf[r] = model.pdf_reflection(a, wo[r], wi[r])
         return f, pdf
 
     def pdf(self, p, wo, wi):
@@ -166,8 +246,8 @@ class Microfacet(SurfaceLobe):
         if groups[0][1] is None:
             return microfacet.pdf_reflection(p.alpha, wo, wi)
         pdf = np.empty(len(p))
-        for model, r in groups:
-            pdf[r] = model.pdf_reflection(p.alpha[r], wo[r], wi[r])
+        for model, r, a in groups:
+            pdf[r] = model.pdf_reflection(a, wo[r], wi[r])
         return pdf
 
     def _sample_rough(self, p, wo, u):
@@ -176,8 +256,8 @@ class Microfacet(SurfaceLobe):
         if groups[0][1] is None:
             return microfacet.sample_reflection(p.alpha, wo, u)[::2]
         wi, pdf = np.empty((len(p), 3)), np.empty(len(p))
-        for model, r in groups:
-            wi[r], _, pdf[r] = model.sample_reflection(p.alpha[r], wo[r], u[r])
+        for model, r, a in groups:
+            wi[r], _, pdf[r] = model.sample_reflection(a, wo[r], u[r])
         return wi, pdf
 
     def sample(self, p, wo, u, u_branch) -> LobeSample:
@@ -202,6 +282,10 @@ class Microfacet(SurfaceLobe):
         return reflection  # Cycles makes no glossy or metallic closure
 
     def blur(self, p, min_alpha):
+        a = np.flatnonzero(p.model >= MODEL_GGX_ANISO)
+        if len(a):  # Cycles' bsdf_microfacet_blur raises both alphas
+            p.alpha_y = p.alpha_y.copy()
+            p.alpha_y[a] = np.maximum(p.alpha_y[a], min_alpha[a])
         blur(p, min_alpha, self.is_delta)
 
     def layer_weight(self, p, wo):
@@ -210,12 +294,24 @@ class Microfacet(SurfaceLobe):
         if len(r):
             darkening = np.ones((len(p), 3))
             darkening[r] = dark
-        return specular_layer_weight(p, wo, darkening)
+        w = specular_layer_weight(p, wo, darkening)
+        f = np.flatnonzero(p.film > thin_film.CUTOFF)
+        if len(f):  # Cycles' estimate: the iridescent Fresnel at wo
+            a = fresnel_color(p.take(f), np.clip(wo[f, 2], 0.0, 1.0))
+            if darkening is not None:
+                a *= darkening[f]
+            w[f] = np.clip(1.0 - max3(a), 0.0, 1.0)
+        return w
 
     def stores_photons(self, m, lobe, min_roughness):
         return m.lobe_roughness[lobe] >= min_roughness
 
     def analysis_albedo(self, m, lobe, color, min_roughness):
+        conductor = m.lobe_fresnel[lobe] == FRESNEL_CONDUCTOR  # colour and tint are n and k
+        if conductor.any():
+            n, k = color[conductor], m.lobe_tint[lobe[conductor]]
+            color = color.copy()
+            color[conductor] = fresnel.conductor(np.ones(len(n)), n, k)
         a = np.maximum(mean_albedo(m, lobe, color), 0.0)
         sharp = m.lobe_roughness[lobe] < min_roughness
         return {"glossy": np.where(sharp, 0.0, a), "specular": np.where(sharp, a, 0.0)}
