@@ -49,7 +49,8 @@ file at that path untouched. Exit codes: 0 done, 1 render failed (also: the Embe
 registered - render.py never renders with another engine), 2 bad input (file, option, scene),
 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, also to the whole process group): one
 line, the render stops within about a second (a second signal stops at once) and the output
-is the previous file or, for a signal as the write ended, the complete new one.
+is the previous file or, for a signal as the write ended, the complete new one; a signal once
+the file is in place is too late to stop anything (exit 0).
 
 Design: the render goes through bpy.ops.render.render with the EMBER engine, the same
 path as F12 in Blender (engine/blender/final.py: export, progressive result writes,
@@ -703,7 +704,9 @@ def _packed_blend_bytes() -> bytes:
             image.pack()
     with tempfile.TemporaryDirectory(prefix="ember-send-") as tmp:
         copy = pathlib.Path(tmp) / "scene.blend"
-        bpy.ops.wm.save_as_mainfile(filepath=str(copy), copy=True, check_existing=False)
+        # Other paths stay as written (relative ones to the original's directory, as the bytes
+        # of the file itself would have them).
+        bpy.ops.wm.save_as_mainfile(filepath=str(copy), copy=True, check_existing=False, relative_remap=False)
         return copy.read_bytes()
 
 
