@@ -49,7 +49,8 @@ file at that path untouched. Exit codes: 0 done, 1 render failed (also: the Embe
 registered - render.py never renders with another engine), 2 bad input (file, option, scene),
 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, also to the whole process group): one
 line, the render stops within about a second (a second signal stops at once) and the output
-is the previous file or, for a signal as the write ended, the complete new one.
+is the previous file or, for a signal as the write ended, the complete new one; a signal once
+the file is in place is too late to stop anything (exit 0).
 
 Design: the render goes through bpy.ops.render.render with the EMBER engine, the same
 path as F12 in Blender (engine/blender/final.py: export, progressive result writes,
@@ -366,6 +367,8 @@ class _Stop:
         self.soft = True  # Blender's own Python (bpy import, add-on loading) must not be interrupted
         self.output = None  # the output path, whose temporaries an abort removes
         self._printed = False
+        self.holding = False  # the output is complete: a signal is noted, not announced (hold)
+        self.held = None
 
     @property
     def code(self) -> int:
@@ -385,6 +388,19 @@ class _Stop:
         if self.requested:
             raise KeyboardInterrupt
 
+    def hold(self) -> None:
+        """The output is complete (its summary line, the exit follow): a signal from here is
+        too late to change it and is only noted, so that an interrupted render never also
+        reports success."""
+        self.holding = True
+
+    def release(self) -> None:
+        """Another frame follows: a signal noted while holding stops it."""
+        self.holding = False
+        if self.held is not None:
+            signum, self.held = self.held, None
+            self(signum, None)
+
     def _say(self) -> None:
         if not self._printed:
             self._printed = True
@@ -393,6 +409,9 @@ class _Stop:
 
     def __call__(self, signum, frame):
         """The Python-level handler (main thread)."""
+        if self.holding:
+            self.held = self.held or signum
+            return
         if self.requested and self.signum is not None and self._printed:
             return  # the watcher counts repeated signals
         self.requested, self.signum = True, signum
@@ -410,6 +429,9 @@ class _Stop:
                 return
             if not data:
                 return
+            if self.holding:
+                self.held = self.held or data[0]
+                continue
             if self.signum is None:
                 self.signum = data[0]
             self.requested = True
@@ -682,7 +704,9 @@ def _packed_blend_bytes() -> bytes:
             image.pack()
     with tempfile.TemporaryDirectory(prefix="ember-send-") as tmp:
         copy = pathlib.Path(tmp) / "scene.blend"
-        bpy.ops.wm.save_as_mainfile(filepath=str(copy), copy=True, check_existing=False)
+        # Other paths stay as written (relative ones to the original's directory, as the bytes
+        # of the file itself would have them).
+        bpy.ops.wm.save_as_mainfile(filepath=str(copy), copy=True, check_existing=False, relative_remap=False)
         return copy.read_bytes()
 
 
@@ -789,6 +813,7 @@ def run(argv: list[str]) -> int:
     if frames is None:
         return job.render_frame(scene, scene.frame_current, frame_path(output, scene.frame_current, False))
     for i, frame in enumerate(frames):
+        STOP.release()  # a signal during the last frame's summary stops this one
         STOP.check()
         scene.frame_set(frame)
         _require_ember(scene)  # a frame-change handler could have switched it
@@ -979,7 +1004,8 @@ class _Job:
             code, summary = self._write(scene, frame, output, follower, blender_error, t_frame, count)
         finally:
             STOP.soft = True
-        STOP.check()  # a signal while the write ended: the file is whole, but the render stops
+        STOP.hold()  # the file is in place: a signal from here is noted (run() releases it)
+        STOP.check()  # one before: the file is whole, but the render stops
         if summary:
             print(summary, flush=True)
         return code
@@ -1110,7 +1136,8 @@ def main() -> int:
     STOP.install()
     try:
         code = run(argv)
-        STOP.check()  # a signal the last phase did not poll (a merge, the farm's last frame)
+        STOP.hold()  # done: a signal from here is too late to stop anything
+        STOP.check()  # one the last phase did not poll (a merge, the farm's last frame)
         return code
     except UsageError as e:
         print(f"render.py: error: {e}", file=sys.stderr)
@@ -1129,6 +1156,8 @@ def main() -> int:
 
 if __name__ == "__main__":
     code = main()
+    for _sig in (signal.SIGINT, signal.SIGTERM):  # the exit code is decided (interpreter shutdown
+        signal.signal(_sig, signal.SIG_IGN)       # restores default handlers, which would kill it)
     sys.stdout.flush()
     sys.stderr.flush()
     sys.exit(code)

@@ -487,13 +487,18 @@ def test_properties_defaults_and_limits():
         assert (e.integrator, e.samples, e.max_depth, e.seed, e.time_limit, e.batch_size, e.pattern) == \
             ('AUTO', 64, 64, 0, 0.0, 131072, 'SOBOL')
         props = type(e).bl_rna.properties
-        assert props["samples"].hard_min == 1
-        assert (props["max_depth"].hard_min, props["max_depth"].hard_max) == (0, 1024)  # one range, as the core's
-        assert props["time_limit"].hard_min == 0.0
-        assert (props["batch_size"].hard_min, props["batch_size"].soft_min) == (1, 1024)
+        # The declared range is the soft one: Blender keeps any value, Ember refuses it.
+        assert props["samples"].soft_min == 1
+        assert (props["max_depth"].soft_min, props["max_depth"].soft_max) == (0, 1024)  # one range, as the core's
+        assert props["time_limit"].soft_min == 0.0
+        assert props["batch_size"].soft_min == 1024
         assert [i.identifier for i in props["integrator"].enum_items] == ['PATH', 'PHOTON', 'PPM', 'ICACHE', 'PATH_CAUSTIC', 'AUTO']  # the registry's order
         e.samples = 0
-        assert e.samples == 1  # clamped
+        assert e.samples == 0  # not clamped: the render refuses it
+        from ember.engine.blender.export_settings import export_settings
+        from ember.engine.errors import EmberError
+        with pytest.raises(EmberError, match=r"samples must be at least 1 \(got 0\)"):
+            export_settings(sc)
     finally:
         bpy.data.scenes.remove(sc)
 

@@ -237,7 +237,8 @@ def test_photon_integrators_from_the_command_line(scenes, integrator, args, word
 
 def test_multilayer_exr_holds_every_enabled_pass_and_the_metadata(scenes):
     """A .blend whose view layer enables passes: render.py's EXR is Blender's multilayer layout
-    (<layer>.<pass>.<channel>) with every enabled pass, and the header names engine, version,
+    (<layer>.<pass>.<channel>) with every enabled pass (and the Color passes Direct and Indirect
+    are divided by), and the header names engine, version,
     integrator, samples, seed and time."""
     build = textwrap.dedent('''
         import sys, bpy
@@ -253,7 +254,9 @@ def test_multilayer_exr_holds_every_enabled_pass_and_the_metadata(scenes):
     assert code == 0, err
     from ember.engine import imageio
     channels, header = imageio.read_exr(scenes / "passes.exr")
-    want = {"Combined": "RGBA", "Depth": "Z", "Normal": "XYZ", "Diffuse Direct": "RGB", "Emission": "RGB"}
+    # Diffuse Color too: Diffuse Direct is divided by it, and parts merge exactly only with it.
+    want = {"Combined": "RGBA", "Depth": "Z", "Normal": "XYZ", "Diffuse Direct": "RGB", "Diffuse Color": "RGB",
+            "Emission": "RGB"}
     assert set(channels) == {f"ViewLayer.{p}.{c}" for p, cs in want.items() for c in cs}
     assert channels["ViewLayer.Depth.Z"].shape == (16, 24)
     assert header["ember/engine"] == "Ember" and header["ember/integrator"] == "path"

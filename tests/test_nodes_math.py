@@ -66,3 +66,46 @@ def test_squeeze_value_is_dropped_as_in_cycles():
     for name, (cycles, ember) in results.items():
         assert node_bake.agreement(cycles, ember) == 1.0, name
     assert abs(results["math"][0] - 0.375).max() < 1e-6
+
+
+def _emission_sign(shader: str, color: tuple, strength: float | None = None):
+    """A shader's emission (Principled or the Emission node) routed to the Surface: its Strength
+    swept over [-3, 3] along u and a constant colour, or with `strength` a constant Strength
+    and the colour swept over [0, 3] along u."""
+    def build(nt):
+        out = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+        if shader == "principled":
+            node = nt.nodes.new("ShaderNodeBsdfPrincipled")
+            node.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+            node.inputs["Specular IOR Level"].default_value = 0.0
+            strength_in, color_in = node.inputs["Emission Strength"], node.inputs["Emission Color"]
+        else:
+            node = nt.nodes.new("ShaderNodeEmission")
+            strength_in, color_in = node.inputs["Strength"], node.inputs["Color"]
+        if strength is None:
+            color_in.default_value = (*color, 1.0)
+            nt.links.new(_sweep(nt, "X", -3.0, 3.0), strength_in)
+        else:
+            strength_in.default_value = strength
+            nt.links.new(_sweep(nt, "X", 0.0, 3.0), color_in)
+        nt.links.new(node.outputs[0], out.inputs["Surface"])
+        return None
+    return build
+
+
+def test_negative_emission_strength_as_cycles():
+    """Cycles' Principled BSDF emits nothing where its Emission Strength or Color is a constant
+    not above the closure cutoff (a negative constant strength: tests/test_robustness.py), and
+    as computed where they are linked, negative too; the Emission node likewise by its colour.
+    Ember agrees on every texel of the sweep."""
+    cases = {f"{shader}_{'neg' if color[0] < 0 else 'pos'}": _emission_sign(shader, color)
+             for shader in ("principled", "emission") for color in ((1.0, 0.5, 0.25), (-1.0, -0.5, -0.25))}
+    cases.update({f"{shader}_constant_negative_strength": _emission_sign(shader, (), -2.0)
+                  for shader in ("principled", "emission")})
+    results = node_bake.bake(cases)
+    for name, (cycles, ember) in results.items():
+        assert node_bake.agreement(cycles, ember) > 0.999, (name, cycles.min(), ember.min(), cycles.max(), ember.max())
+    assert results["emission_pos"][0].min() < -1.0 and results["principled_pos"][0].min() < -1.0  # linked: as is
+    assert not results["principled_neg"][0].any() and not results["emission_neg"][0].any()  # a constant colour <= 0
+    assert not results["principled_constant_negative_strength"][0].any()  # ... or strength
+    assert results["emission_constant_negative_strength"][0].min() < -1.0  # the Emission node emits it

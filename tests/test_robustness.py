@@ -587,39 +587,51 @@ shared.unlink(segment)
 
 WRITE_ENDS = """
 import json, os, signal, sys
-render_py, report = sys.argv[1], sys.argv[2]
-sys.argv = [render_py] + sys.argv[3:]
+render_py, report, when = sys.argv[1], sys.argv[2], sys.argv[3]
+sys.argv = [render_py] + sys.argv[4:]
 source = open(render_py).read().replace('if __name__ == "__main__":', 'patch(globals())\\nif __name__ == "__main__":')
 
 def patch(g):
-    write = g["_Job"]._write
+    write, hold = g["_Job"]._write, type(g["STOP"]).hold
     def _write(self, *args, **kwargs):
         before = set(sys.modules)
         result = write(self, *args, **kwargs)
         json.dump(sorted(set(sys.modules) - before), open(report, "w"))
-        g["STOP"].soft = True  # the signal lands as the write's finally runs
-        os.kill(os.getpid(), signal.SIGINT)
+        if when == "write":
+            g["STOP"].soft = True  # the signal lands as the write's finally runs
+            os.kill(os.getpid(), signal.SIGINT)
         return result
+    def _hold(self):
+        hold(self)
+        if when == "summary":  # the file is in place, its summary line next
+            os.kill(os.getpid(), signal.SIGINT)
     g["_Job"]._write = _write
+    type(g["STOP"]).hold = _hold
 
 exec(compile(source, render_py, "exec"), {"__name__": "__main__", "__file__": render_py, "patch": patch})
 """
 
 
 @pytest.mark.blender
-def test_ctrl_c_as_the_write_ends_exits_130_with_the_whole_file(bad_scenes):
-    """Ctrl-C as the output write ends: exit 130 and one line, the file complete, no summary
-    (never "Interrupted." and a success together); nothing is imported while a signal
-    interrupts the write (an interrupted import of OpenEXR's binding fails for good)."""
+@pytest.mark.parametrize("when", ["write", "summary"])
+def test_ctrl_c_as_the_write_ends_is_one_outcome(bad_scenes, when):
+    """Ctrl-C as the output write ends: exit 130 and one line, the file complete, no summary;
+    once the file is in place and its summary follows, the signal is too late: exit 0 and the
+    summary, no "Interrupted." (never both). Nothing is imported while a signal interrupts the
+    write (an interrupted import of OpenEXR's binding fails for good)."""
     import json
     from test_cli import RENDER
-    out_path, report = bad_scenes / "ends.exr", bad_scenes / "imported.json"
-    proc = _start(bad_scenes, RENDER, report, "world_only.blend", "-o", out_path, "--samples", "1",
+    out_path, report = bad_scenes / f"ends_{when}.exr", bad_scenes / "imported.json"
+    proc = _start(bad_scenes, RENDER, report, when, "world_only.blend", "-o", out_path, "--samples", "1",
                   "--no-progress", script=WRITE_ENDS)
     out, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130, err
-    assert err.strip().splitlines() == ["Interrupted."], err
-    assert " -> " not in out, out
+    if when == "write":
+        assert proc.returncode == 130, err
+        assert err.strip().splitlines() == ["Interrupted."], err
+        assert " -> " not in out, out
+    else:
+        assert proc.returncode == 0, err
+        assert err.strip() == "" and " -> " in out.splitlines()[-1], (out, err)
     assert np.allclose(_exr(out_path)[..., :3], [0.2, 0.4, 0.6])
     assert json.loads(report.read_text()) == []
 

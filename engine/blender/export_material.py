@@ -496,7 +496,8 @@ class _Converter:
         ecolor, etex = self.color(node, "Emission Color")
         if etex >= 0:
             self.note(f"texture on '{node.name}' Emission Color (used the input's own value)")
-        # A negative Principled Emission Strength emits nothing in Cycles (engine/nodes/shaders.py).
+        # A constant Emission Strength not above the cutoff emits nothing in Cycles, a negative
+        # one included (engine/nodes/shaders.py _emits).
         self.emission += w * ecolor * max(self.constant(node, "Emission Strength"), 0.0)
         if atex >= 0 and self.emission.max() > 0:
             self.note(f"'{node.name}' emission under a textured Alpha (emitted in full)")

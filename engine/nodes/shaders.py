@@ -82,6 +82,18 @@ _BECKMANN = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy", "ShaderNodeBsd
 _ASHIKHMIN_SHIRLEY = ("ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfGlossy")
 
 
+def _emits(node, inputs) -> bool:
+    """Whether a Principled BSDF emits: Cycles' shader graph drops its emission where the
+    Emission Strength or Color is unlinked and not above the cutoff (a negative constant
+    strength emits nothing), and evaluates linked ones as they come, negative too (checked by
+    baking with bpy's Cycles: tests/test_nodes_math.py)."""
+    for name in ("Emission Strength", "Emission Color"):
+        socket = node.input(name)
+        if (socket is None or socket.link is None) and not np.max(inputs[name]) > CUTOFF:
+            return False
+    return True
+
+
 def _distribution(node) -> str:
     """The node's distribution as a lobe parameter: Multiscatter GGX, GGX, Beckmann (Glossy,
     Metallic, Glass, Refraction) and Ashikhmin-Shirley (Glossy) where Blender offers them."""
@@ -277,10 +289,8 @@ def principled(node, inputs, state):
     w = ONES
     out = _closure("transparent", w * column(1.0 - alpha), label + "/alpha", color=ONES)
     w = w * column(alpha)
-    # Cycles renders no emission for a negative Principled Emission Strength (checked by
-    # rendering with bpy's Cycles), unlike the Emission node's, which emits negative light.
-    strength = np.maximum(np.asarray(inputs["Emission Strength"], np.float64), 0.0)
-    emission = _closure("emission", w * triple(inputs["Emission Color"]) * column(strength), label + "/emission")
+    emission = _closure("emission", w * triple(inputs["Emission Color"]) * column(inputs["Emission Strength"]),
+                        label + "/emission") if _emits(node, inputs) else ()
     f0 = f0_from_ior(ior)
     rescaled = level != 0.5  # Specular IOR Level rescales F0 and the IOR with it
     f0 = np.where(rescaled, f0 * 2.0 * level, f0)
