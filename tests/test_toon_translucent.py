@@ -185,3 +185,33 @@ def test_renders_as_cycles(build, tmp_path):
         cycles = [cycles_image(sc, CYCLES_SAMPLES, 100 + k, tmp_path / f"c{k}.exr") for k in range(SEEDS)]
         ember = [ember_image(sc, "PATH", EMBER_SAMPLES, k) for k in range(SEEDS)]
         agree(ember, cycles, 2, TOL)
+
+
+def test_toon_components_fill_their_own_passes_and_light_visibility():
+    """A material of a Diffuse Toon and a Glossy Toon: the closure files each one's light in
+    its own pass class (Diffuse, Glossy) and a light seen by diffuse rays only lights the
+    Diffuse Toon (Cycles' closure classes)."""
+    from ember.engine.bsdf.closure import Closure
+    from ember.engine.scene import Lights, RAY_DIFFUSE, Scene, World
+    from core_scenes import perspective, quads_mesh, settings
+    wide = dict(roughness=1.0, exponent=0.0)
+    mats = Materials.make([dict(kind=MAT_NODES, lobes=[dict(DIFFUSE, **wide), dict(GLOSSY, **wide)])])
+    quad = [[-1, 1, -1], [-1, 1, 1], [1, 1, 1], [1, 1, -1]]
+    scene = Scene(quads_mesh([quad], [0]), mats, Lights.make([]), World(), perspective((0, 0, 0), (0, 1, 0), 30),
+                  settings())
+    k = 64
+    n = np.tile([0.0, -1.0, 0.0], (k, 1))
+    wo = np.tile([0.0, -np.cos(0.3), np.sin(0.3)], (k, 1))
+    bsdf = Closure(scene, np.zeros(k, np.int64), n, n, wo, np.zeros(k, np.int64), np.full((k, 3), 1 / 3))
+    wi = _unit(k, 5)
+    wi[:, 1] = -np.abs(wi[:, 1])
+    rows = np.arange(k)
+    by_class = bsdf.eval_by_class(wi, rows)
+    f_diffuse = _params(dict(DIFFUSE, **wide), k)
+    local = np.stack([wi[:, 0], wi[:, 2], -wi[:, 1]], axis=1)  # any frame about n: only angles matter here
+    local_wo = np.stack([wo[:, 0], wo[:, 2], -wo[:, 1]], axis=1)
+    d = f_diffuse[0].eval(f_diffuse[1], local_wo, local)[0]
+    np.testing.assert_allclose(by_class[:, 0], d, rtol=1e-9)
+    assert np.all(by_class[:, 2] == 0) and by_class[:, 1].max() > 0
+    f, _ = bsdf.eval(wi, rows, np.full(k, RAY_DIFFUSE, np.uint8))
+    np.testing.assert_allclose(f, by_class[:, 0], rtol=1e-9)

@@ -876,4 +876,10 @@ MUTATIONS = [
          old="    return p, out / np.linalg.norm(out, axis=1, keepdims=True)",
          new="    return 0.0 * p, out / np.linalg.norm(out, axis=1, keepdims=True)",
          tests=["tests/test_panorama.py"]),
+    dict(name="toon_components_one_class",
+         note="the Glossy Toon's light filed with the Diffuse Toon's (the kind's class for every row)",
+         file="engine/bsdf/lobes/toon.py",
+         old="        return (np.where(p.glossy, CLASS_GLOSSY, CLASS_DIFFUSE),",
+         new="        return None and (np.where(p.glossy, CLASS_GLOSSY, CLASS_DIFFUSE),",
+         tests=["tests/test_toon_translucent.py"]),
 ]
