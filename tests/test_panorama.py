@@ -178,3 +178,15 @@ def test_a_camera_view_shows_the_panorama_in_the_camera_frame():
     assert left + (right - left) * 120 / 140 == pytest.approx(1.0)
     assert bottom + (top - bottom) * 60 / 80 == pytest.approx(1.0)
     assert view.sensor == (36.0, 18.0) and view.panorama == cam.panorama
+
+
+def test_a_panoramic_camera_survives_save_and_load(tmp_path):
+    from ember.engine.scene import Lights, Materials, Scene, World
+    from core_scenes import quads_mesh, settings
+    cam = _camera("FISHEYE_LENS_POLYNOMIAL")
+    scene = Scene(quads_mesh([[[-1, 1, -1], [-1, 1, 1], [1, 1, 1], [1, 1, -1]]], [0]), Materials.make([]),
+                  Lights.make([]), World(), cam, settings())
+    scene.save(tmp_path / "s.npz")
+    back = Scene.load(tmp_path / "s.npz").camera
+    assert back.panorama == cam.panorama and tuple(back.polynomial) == cam.polynomial
+    assert tuple(back.sensor) == cam.sensor and back.fisheye_fov == cam.fisheye_fov
