@@ -32,6 +32,17 @@ def camera_rays(camera: Camera, settings: Settings, px: np.ndarray, py: np.ndarr
     return generate_rays(camera, settings, px, py, sampler.get(0, None, 2), u_lens)
 
 
+def pixel_angle(camera: Camera, settings: Settings) -> float:
+    """A pixel's width at the image's centre: radians (perspective: at unit distance; a
+    panorama: between the directions of the two middle pixels), metres for orthographic."""
+    left, right = (float(v) for v in camera.window[:2])
+    if not camera.panorama:
+        return abs(right - left) / max(settings.width, 1)
+    u = 0.5 + np.array([-0.5, 0.5]) / max(settings.width, 1)
+    d = panorama.to_direction(camera, u, np.full(2, 0.5))
+    return float(np.arccos(np.clip(np.dot(d[0], d[1]), -1.0, 1.0)))
+
+
 def sample_aperture(camera: Camera, u: np.ndarray) -> np.ndarray:
     """Points (N,2) on the aperture in camera x, y (metres) from u (N,2): Cycles'
     camera_sample_aperture (uniform disk, or regular_polygon_sample's uniform point in one of
