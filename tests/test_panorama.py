@@ -190,3 +190,9 @@ def test_a_panoramic_camera_survives_save_and_load(tmp_path):
     back = Scene.load(tmp_path / "s.npz").camera
     assert back.panorama == cam.panorama and tuple(back.polynomial) == cam.polynomial
     assert tuple(back.sensor) == cam.sensor and back.fisheye_fov == cam.fisheye_fov
+
+
+def test_pixel_angle_of_a_panorama():
+    """A full equirectangular image of W pixels spans 2 pi: a pixel is 2 pi / W at the horizon."""
+    cam = _camera("EQUIRECTANGULAR", pano_range=(-np.pi, np.pi, -0.5 * np.pi, 0.5 * np.pi))
+    assert camera_mod.pixel_angle(cam, Settings(width=90, height=45)) == pytest.approx(2 * np.pi / 90, rel=1e-9)
