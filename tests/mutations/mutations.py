@@ -882,4 +882,10 @@ MUTATIONS = [
          old="        return (np.where(p.glossy, CLASS_GLOSSY, CLASS_DIFFUSE),",
          new="        return None and (np.where(p.glossy, CLASS_GLOSSY, CLASS_DIFFUSE),",
          tests=["tests/test_toon_translucent.py"]),
+    dict(name="pano_camera_space_blenders",
+         note="a panorama's Camera texture coordinates in Blender's camera axes, not the projection's",
+         file="engine/camera.py",
+         old="    turn[:3, :3] = panorama.panorama_to_camera(camera.panorama) if camera.panorama else np.diag([1.0, 1.0, -1.0])",
+         new="    turn[:3, :3] = np.diag([1.0, 1.0, -1.0])",
+         tests=["tests/test_panorama.py"]),
 ]
