@@ -205,6 +205,7 @@ def _texco_scene(kind, output, world):
     from cycles_scenes import camera, new_scene, node_material
     sc = new_scene(32)
     if world:
+        sc.world.cycles.sampling_method = "NONE"  # nothing it lights: spares Cycles its importance map
         nt = sc.world.node_tree
         target = nt.nodes["Background"].inputs["Color"]
     else:
