@@ -27,8 +27,6 @@ sys.path.insert(0, str(ROOT / "tests"))
 import _bootstrap  # noqa: E402
 
 _bootstrap.load_ember()
-import bpy  # noqa: E402,F401
-
 from metrics import EPS  # noqa: E402
 from cycles_scenes import addon, rgba_cycles, rgba_ember  # noqa: E402
 import test_holdout  # noqa: E402

@@ -32,6 +32,28 @@ def camera_rays(camera: Camera, settings: Settings, px: np.ndarray, py: np.ndarr
     return generate_rays(camera, settings, px, py, sampler.get(0, None, 2), u_lens)
 
 
+def cycles_frame(camera: Camera) -> np.ndarray:
+    """(4,4) Cycles' camera-to-world (no scale): its camera space looks down +z (Blender's
+    camera looks down -z), a panorama's is the projection's (engine/panorama.py). What the
+    Camera texture coordinates and the Vector Transform's camera space are in."""
+    turn = np.eye(4)
+    turn[:3, :3] = panorama.panorama_to_camera(camera.panorama) if camera.panorama else np.diag([1.0, 1.0, -1.0])
+    m = np.asarray(camera.world_from_camera, np.float64) @ turn
+    m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=0)
+    return m
+
+
+def pixel_angle(camera: Camera, settings: Settings) -> float:
+    """A pixel's width at the image's centre: radians (perspective: at unit distance; a
+    panorama: between the directions of the two middle pixels), metres for orthographic."""
+    left, right = (float(v) for v in camera.window[:2])
+    if not camera.panorama:
+        return abs(right - left) / max(settings.width, 1)
+    u = 0.5 + np.array([-0.5, 0.5]) / max(settings.width, 1)
+    d = panorama.to_direction(camera, u, np.full(2, 0.5))
+    return float(np.arccos(np.clip(np.dot(d[0], d[1]), -1.0, 1.0)))
+
+
 def sample_aperture(camera: Camera, u: np.ndarray) -> np.ndarray:
     """Points (N,2) on the aperture in camera x, y (metres) from u (N,2): Cycles'
     camera_sample_aperture (uniform disk, or regular_polygon_sample's uniform point in one of

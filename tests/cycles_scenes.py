@@ -11,11 +11,13 @@ import ember
 
 
 def new_scene(size: int, world=(0.0, 0.0, 0.0)):
-    """An empty scene of size x size pixels, a constant world, box filter, CPU, no denoising."""
+    """An empty scene of size x size pixels, a constant world of colour `world` (its Background
+    node's), box filter, CPU, no denoising."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
     w = bpy.data.worlds.new("World")
-    sc.world, w.color = w, world
+    sc.world = w  # Blender 5's worlds render their node tree: World.color alone is not seen
+    w.node_tree.nodes["Background"].inputs["Color"].default_value = (*world, 1.0)
     sc.render.resolution_x = sc.render.resolution_y = size
     sc.render.resolution_percentage = 100
     sc.cycles.pixel_filter_type = "BOX"

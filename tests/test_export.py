@@ -626,8 +626,11 @@ def test_errors_for_unrenderable_scenes():
         export()
     sc = new_scene()
     cube()
-    sc.camera.data.type = "PANO"
-    with pytest.raises(EmberError, match="panoramic"):
+    sc.camera.data.type = "PANO"  # panoramic cameras export (tests/test_panorama.py)...
+    sc.camera.data.panorama_type = "EQUIRECTANGULAR"
+    assert export()[0].camera.panorama == "EQUIRECTANGULAR"
+    sc.camera.data.latitude_min = sc.camera.data.latitude_max = 0.3  # ... unless their range is empty
+    with pytest.raises(EmberError, match="empty panorama range"):
         export()
     # Objects invisible to every ray type are skipped; a light alone is renderable.
     sc = new_scene()

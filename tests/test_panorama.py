@@ -178,3 +178,63 @@ def test_a_camera_view_shows_the_panorama_in_the_camera_frame():
     assert left + (right - left) * 120 / 140 == pytest.approx(1.0)
     assert bottom + (top - bottom) * 60 / 80 == pytest.approx(1.0)
     assert view.sensor == (36.0, 18.0) and view.panorama == cam.panorama
+
+
+def test_a_panoramic_camera_survives_save_and_load(tmp_path):
+    from ember.engine.scene import Lights, Materials, Scene, World
+    from core_scenes import quads_mesh, settings
+    cam = _camera("FISHEYE_LENS_POLYNOMIAL")
+    scene = Scene(quads_mesh([[[-1, 1, -1], [-1, 1, 1], [1, 1, 1], [1, 1, -1]]], [0]), Materials.make([]),
+                  Lights.make([]), World(), cam, settings())
+    scene.save(tmp_path / "s.npz")
+    back = Scene.load(tmp_path / "s.npz").camera
+    assert back.panorama == cam.panorama and tuple(back.polynomial) == cam.polynomial
+    assert tuple(back.sensor) == cam.sensor and back.fisheye_fov == cam.fisheye_fov
+
+
+def test_pixel_angle_of_a_panorama():
+    """A full equirectangular image of W pixels spans 2 pi: a pixel is 2 pi / W at the horizon."""
+    cam = _camera("EQUIRECTANGULAR", pano_range=(-np.pi, np.pi, -0.5 * np.pi, 0.5 * np.pi))
+    assert camera_mod.pixel_angle(cam, Settings(width=90, height=45)) == pytest.approx(2 * np.pi / 90, rel=1e-9)
+
+
+def _texco_scene(kind, output, world):
+    """|Texture Coordinate `output`| as the emission of a sphere around a `kind` camera, or as
+    the world's colour (world)."""
+    import bpy
+    from cycles_scenes import camera, new_scene, node_material
+    sc = new_scene(32)
+    if world:
+        sc.world.cycles.sampling_method = "NONE"  # nothing it lights: spares Cycles its importance map
+        nt = sc.world.node_tree
+        target = nt.nodes["Background"].inputs["Color"]
+    else:
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=6)
+        mat, nt, out = node_material("Coordinates")
+        em = nt.nodes.new("ShaderNodeEmission")
+        nt.links.new(em.outputs[0], out.inputs["Surface"])
+        bpy.context.active_object.data.materials.append(mat)
+        target = em.inputs["Color"]
+    tc, ab = nt.nodes.new("ShaderNodeTexCoord"), nt.nodes.new("ShaderNodeVectorMath")
+    ab.operation = "ABSOLUTE"
+    nt.links.new(tc.outputs[output], ab.inputs[0])
+    nt.links.new(ab.outputs[0], target)
+    cam = camera(sc, (0.3, 0.2, 1.2), (1.4, 0.0, 0.5))
+    cam.data.type, cam.data.panorama_type = "PANO", kind
+    return sc
+
+
+@pytest.mark.blender
+@pytest.mark.parametrize("kind, output, world", [("FISHEYE_EQUIDISTANT", "Camera", False),
+                                                 ("MIRRORBALL", "Window", True)])
+def test_camera_and_window_coordinates_of_a_panorama_as_cycles(kind, output, world, tmp_path):
+    """Cycles' camera space of a panorama is the projection's; Window is where it shows a point."""
+    from cycles_renders import agree, cycles_image, ember_image
+    from cycles_scenes import addon
+    with addon():
+        sc = _texco_scene(kind, output, world)
+        cycles = [cycles_image(sc, 16, k, tmp_path / f"c{k}.exr") for k in range(3)]
+        ember = [ember_image(sc, "PATH", 16, k) for k in range(3)]
+    for c in range(3):  # each axis apart: swapped axes must not pass (Window's z is 0)
+        if np.mean(cycles[0][..., c]) > 0:
+            agree([e[..., c:c + 1] for e in ember], [x[..., c:c + 1] for x in cycles], 6, 0.01)

@@ -9,7 +9,6 @@ import pytest
 
 from ember.engine.bsdf import lobes
 from ember.engine.bsdf.lobes import inputs
-from ember.engine.bsdf.lobes.toon import intensity
 from ember.engine.scene import LOBE_TOON, LOBE_TRANSLUCENT, MAT_NODES, TOON_GLOSSY, Materials
 
 from stats import ChiSquareTest, Sphere
@@ -90,15 +89,15 @@ def test_translucent_is_reciprocal_and_glossy_toon_f_cos_is_symmetric():
 
 
 def _energy(size, smooth):
-    """Cycles' toon albedo by quadrature: the mean of the intensity over the sampled cone
-    (f cos = I pdf_c), size and smooth in Blender's units."""
+    """Cycles' toon albedo in closed form: the mean over the sampled cone (half-angle theta_s)
+    of the intensity, 1 up to the angle a and 1 - (theta - a) / s after it (f cos = I pdf_c):
+    (1 - cos a + cos a - g(theta_s) cos theta_s - (sin theta_s - sin a) / s) / (1 - cos theta_s)."""
     a, s = np.clip(size, 1e-5, 1) * np.pi / 2, np.clip(smooth, 0, 1) * np.pi / 2
     theta_s = min(a + s, np.pi / 2)
-    total = 1.0 - np.cos(min(a, theta_s))  # full intensity inside the cone of size
-    if theta_s > a:  # the fall-off, by the trapezoid rule between its own ends
-        t = np.linspace(a, theta_s, 200_001)
-        y = intensity(np.full_like(t, a), np.full_like(t, s), t) * np.sin(t)
-        total += np.sum((y[1:] + y[:-1]) * 0.5 * np.diff(t))
+    total = 1.0 - np.cos(min(a, theta_s))
+    if s > 0 and theta_s > a:  # the fall-off, integrated by parts
+        g = 1.0 - (theta_s - a) / s
+        total += np.cos(a) - g * np.cos(theta_s) - (np.sin(theta_s) - np.sin(a)) / s
     return total / (1.0 - np.cos(theta_s))
 
 
@@ -185,3 +184,33 @@ def test_renders_as_cycles(build, tmp_path):
         cycles = [cycles_image(sc, CYCLES_SAMPLES, 100 + k, tmp_path / f"c{k}.exr") for k in range(SEEDS)]
         ember = [ember_image(sc, "PATH", EMBER_SAMPLES, k) for k in range(SEEDS)]
         agree(ember, cycles, 2, TOL)
+
+
+def test_toon_components_fill_their_own_passes_and_light_visibility():
+    """A material of a Diffuse Toon and a Glossy Toon: the closure files each one's light in
+    its own pass class (Diffuse, Glossy) and a light seen by diffuse rays only lights the
+    Diffuse Toon (Cycles' closure classes)."""
+    from ember.engine.bsdf.closure import Closure
+    from ember.engine.scene import Lights, RAY_DIFFUSE, Scene, World
+    from core_scenes import perspective, quads_mesh, settings
+    wide = dict(roughness=1.0, exponent=0.0)
+    mats = Materials.make([dict(kind=MAT_NODES, lobes=[dict(DIFFUSE, **wide), dict(GLOSSY, **wide)])])
+    quad = [[-1, 1, -1], [-1, 1, 1], [1, 1, 1], [1, 1, -1]]
+    scene = Scene(quads_mesh([quad], [0]), mats, Lights.make([]), World(), perspective((0, 0, 0), (0, 1, 0), 30),
+                  settings())
+    k = 64
+    n = np.tile([0.0, -1.0, 0.0], (k, 1))
+    wo = np.tile([0.0, -np.cos(0.3), np.sin(0.3)], (k, 1))
+    bsdf = Closure(scene, np.zeros(k, np.int64), n, n, wo, np.zeros(k, np.int64), np.full((k, 3), 1 / 3))
+    wi = _unit(k, 5)
+    wi[:, 1] = -np.abs(wi[:, 1])
+    rows = np.arange(k)
+    by_class = bsdf.eval_by_class(wi, rows)
+    f_diffuse = _params(dict(DIFFUSE, **wide), k)
+    local = np.stack([wi[:, 0], wi[:, 2], -wi[:, 1]], axis=1)  # any frame about n: only angles matter here
+    local_wo = np.stack([wo[:, 0], wo[:, 2], -wo[:, 1]], axis=1)
+    d = f_diffuse[0].eval(f_diffuse[1], local_wo, local)[0]
+    np.testing.assert_allclose(by_class[:, 0], d, rtol=1e-9)
+    assert np.all(by_class[:, 2] == 0) and by_class[:, 1].max() > 0
+    f, _ = bsdf.eval(wi, rows, np.full(k, RAY_DIFFUSE, np.uint8))
+    np.testing.assert_allclose(f, by_class[:, 0], rtol=1e-9)

@@ -254,12 +254,13 @@ class ViewportDriver:
 
 def _region_camera(context, export: LiveExport) -> Camera:
     r3d, space = context.region_data, context.space_data
-    ob = context.scene.camera
-    if r3d.view_perspective == "CAMERA" and ob is not None and ob.type == "CAMERA" and ob.data.type == "PANO" \
-            and export.scene.camera.panorama:
+    scene = getattr(context, "scene", None)
+    ob = scene.camera if scene is not None else None
+    if getattr(r3d, "view_perspective", "PERSP") == "CAMERA" and ob is not None and ob.type == "CAMERA" \
+            and ob.data.type == "PANO" and export.scene.camera.panorama:
         from bpy_extras.view3d_utils import location_3d_to_region_2d
         corners = [location_3d_to_region_2d(context.region, r3d, ob.matrix_world @ v)
-                   for v in ob.data.view_frame(scene=context.scene)]
+                   for v in ob.data.view_frame(scene=scene)]
         if all(c is not None for c in corners):
             xs, ys = [c.x for c in corners], [c.y for c in corners]
             border = (min(xs), max(xs), min(ys), max(ys))

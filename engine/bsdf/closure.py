@@ -162,6 +162,7 @@ class Closure:
         self.inside = dot(wo, outward) < 0 if outward is not None else np.zeros(n, bool)
 
         self.groups, self.pair_pos = self._group_pairs(kinds, src)
+        self._facts = None  # _pair_facts
         if adjoint:
             for g in self.groups:
                 g.p.adjoint = True
@@ -210,6 +211,18 @@ class Closure:
             params = LOBES[k].parameters(self.m, lobe[rows], point[rows], src.take(rows), self.inside)
             groups.append(_Group(LOBES[k], rows, params))
         return groups, pos
+
+    def _pair_facts(self):
+        """(render-pass class of the reflection (P,), RAY_* bits of the lights that light it
+        (P,)) of every pair: its kind's, or its row's where a lobe's rows differ (row_facts)."""
+        if self._facts is None:
+            cls, rays = REFLECTION_CLASS[self.pair_kind], RAYS[self.pair_kind]
+            for g in self.groups:
+                facts = g.lobe.row_facts(g.p)
+                if facts is not None:
+                    cls[g.rows], rays[g.rows] = facts
+            self._facts = cls, rays
+        return self._facts
 
     def _params(self, g: _Group, pairs: np.ndarray) -> Params:
         """The parameters of pairs (K,) of group g."""
@@ -311,7 +324,7 @@ class Closure:
         tan2 = 1.0 / np.maximum(cos_i, 1e-6) ** 2 - 1.0
         g = np.where(cos_i < 1e-6, 0.0, 1.0 / (1.0 + 0.5 * (np.sqrt(1.0 + alpha2 * tan2) - 1.0)))
         diffuse_factor = factor * np.where(soft, g, 1.0)
-        diffuse = REFLECTION_CLASS[self.pair_kind[pairs]] == CLASS_DIFFUSE  # Cycles' CLOSURE_IS_BSDF_DIFFUSE
+        diffuse = self._pair_facts()[0][pairs] == CLASS_DIFFUSE  # Cycles' CLOSURE_IS_BSDF_DIFFUSE
         return np.where(diffuse, diffuse_factor[owner], factor[owner])
 
     def _mixture(self, rows: np.ndarray, wi: np.ndarray, visible=None, shading_side=None):
@@ -327,7 +340,7 @@ class Closure:
             agree |= shading_side
         pairs, owner = self._pairs_of(rows)
         if visible is not None:
-            lit = (RAYS[self.pair_kind[pairs]] & visible[owner]) != 0
+            lit = (self._pair_facts()[1][pairs] & visible[owner]) != 0
             pairs, owner = pairs[lit], owner[lit]
         f_pair, pdf_pair = self._eval_pairs(pairs, take(self.wo_local, rows[owner]), take(wi_local, owner))
         pdf_pair = self.pair_select[pairs] * pdf_pair
@@ -371,7 +384,7 @@ class Closure:
         if bump is not None:
             f_pair = scale(f_pair, bump)
         kind = self.pair_kind[pairs]
-        cls = np.where(wi_local[owner, 2] < 0, TRANSMISSION_CLASS[kind], REFLECTION_CLASS[kind])
+        cls = np.where(wi_local[owner, 2] < 0, TRANSMISSION_CLASS[kind], self._pair_facts()[0][pairs])
         out = np.zeros((k * 3, 3))
         for c in range(3):
             out[:, c] = np.bincount(owner * 3 + cls, f_pair[:, c], minlength=k * 3)

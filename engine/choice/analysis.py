@@ -192,10 +192,9 @@ def _camera_rays(scene: Scene, n: int, seed: int):
 
 
 def _footprint(scene, hit) -> float:
-    """Median width (m) of a pixel where camera rays first hit (perspective: distance x the
-    pixel's angle; orthographic: the window's width over the pixels)."""
-    left, right = scene.camera.window[:2]
-    pixel = abs(right - left) / max(scene.settings.width, 1)
+    """Median width (m) of a pixel where camera rays first hit (perspective and panoramic:
+    distance x the pixel's angle; orthographic: the window's width over the pixels)."""
+    pixel = camera_mod.pixel_angle(scene.camera, scene.settings)
     t = hit.t[hit.prim >= 0]
     if len(t) == 0:
         return float("nan")

@@ -49,6 +49,7 @@ from dataclasses import replace
 import numpy as np
 
 from .. import panorama, sampling
+from ..camera import cycles_frame
 from ..nodes import atmosphere
 from ..nodes.closures import closures
 from ..nodes.graph import Graph
@@ -148,9 +149,8 @@ class _Directions(ZeroFields, PathFields):
             left, right, bottom, top = -1.0, 1.0, -1.0, 1.0
         else:
             left, right, bottom, top = (float(v) for v in cam.window)
-        if cam is not None and cam.panorama:  # where the projection shows the direction
-            turn = panorama.panorama_to_camera(cam.panorama) * [[1.0], [1.0], [-1.0]]  # from z forward
-            u, v = panorama.from_direction(cam, (self._d @ m[:3, :3]) @ turn)
+        if cam is not None and cam.panorama:  # where the projection shows the direction (m: its frame)
+            u, v = panorama.from_direction(cam, self._d @ m[:3, :3])
             return np.stack([u, v, np.zeros(len(u))], axis=1)
         if cam is not None and cam.ortho:
             c = (self._d - m[:3, 3]) @ m[:3, :3]
@@ -166,11 +166,7 @@ class _Directions(ZeroFields, PathFields):
 def camera_frame(camera) -> np.ndarray:
     """Cycles' camera-to-world (4,4) of a scene Camera (z forward, no scale), identity without
     one (engine/nodes/hits.py has the same for surface hits)."""
-    if camera is None:
-        return np.eye(4)
-    m = np.asarray(camera.world_from_camera, np.float64) @ np.diag([1.0, 1.0, -1.0, 1.0])
-    m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=0)
-    return m
+    return np.eye(4) if camera is None else cycles_frame(camera)
 
 
 class Background:

@@ -40,6 +40,7 @@ from ..scene import ATTRIBUTE_TYPES, Scene
 from ..textures import mesh_uv
 from ..vec import dot, normalize
 from .. import panorama
+from ..camera import cycles_frame
 from . import light_path
 from .state import Attribute, ShadingState
 
@@ -396,9 +397,7 @@ class SurfaceHits(PathFields):
         return self._generated_differences()[1]
 
     def world_from_camera(self):
-        m = np.asarray(self.scene.camera.world_from_camera, np.float64) @ _CYCLES_FROM_BLENDER_CAMERA
-        m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=0)
-        return m
+        return cycles_frame(self.scene.camera)
 
     def camera_from_world(self):
         return np.linalg.inv(self.world_from_camera())
@@ -411,9 +410,7 @@ class SurfaceHits(PathFields):
         """The point in the camera's window: (0, 0) bottom left, (1, 1) top right, z 0."""
         cam = self.scene.camera
         if cam.panorama:  # where the projection shows the point (Cycles' camera_world_to_ndc)
-            m = np.asarray(cam.world_from_camera, np.float64)
-            d = (self._p - m[:3, 3]) @ (m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0))
-            u, v = panorama.from_direction(cam, d @ panorama.panorama_to_camera(cam.panorama))
+            u, v = panorama.from_direction(cam, self.camera())
             return np.stack([u, v, np.zeros(len(u))], axis=1)
         c = self.camera()  # z forward
         left, right, bottom, top = (float(v) for v in cam.window)

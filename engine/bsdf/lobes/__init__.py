@@ -11,7 +11,7 @@ module here and one entry in LOBES; phase functions (volumes) have the same inte
     4     Transparent   none               transmission                     always
     5     OrenNayar     diffuse            diffuse                          never
     7     Translucent   diffuse            diffuse                          never
-    8     Toon          diffuse + glossy   diffuse (Glossy component: glossy colour)  never
+    8     Toon          per component      per component (Diffuse, Glossy)  never
 """
 from __future__ import annotations
 
@@ -28,7 +28,6 @@ from .phong import Phong
 from .toon import Toon
 from .translucent import Translucent
 from .transparent import Transparent
-
 
 
 class _SheenSlot(Diffuse):

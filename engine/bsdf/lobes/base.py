@@ -164,6 +164,12 @@ class SurfaceLobe(Lobe):
     def blur(self, p: SurfaceParams, min_alpha: np.ndarray) -> None:
         """Filter Glossy: rows with a GGX alpha below min_alpha (K,) get min_alpha (p in place)."""
 
+    def row_facts(self, p: SurfaceParams):
+        """(render-pass class of its reflection (K,), RAY_* bits of the lights that light it (K,))
+        per row, for a lobe whose rows differ in them (components of different kinds in one
+        lobe); None: every row has the kind's reflection_class and rays."""
+        return None
+
     def layer_weight(self, p: SurfaceParams, wo: np.ndarray) -> np.ndarray:
         """(K,) weight it leaves to the lobe under it (Cycles' closure_layering_weight:
         1 - max_rgb of its albedo)."""

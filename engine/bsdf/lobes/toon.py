@@ -56,7 +56,7 @@ def _mirror(w):
 
 class Toon(SurfaceLobe):
     kind = LOBE_TOON
-    rays = RAY_DIFFUSE | RAY_GLOSSY  # one kind for both components (per row: Diffuse or Glossy)
+    rays = RAY_DIFFUSE | RAY_GLOSSY  # both components' (per row: row_facts)
     reflection_class = transmission_class = CLASS_DIFFUSE
 
     def parameters(self, m, lobe, point, src, inside) -> ToonParams:
@@ -71,6 +71,12 @@ class Toon(SurfaceLobe):
     def albedo_parts(self, p, wo, weight, estimate):
         glossy = p.glossy[:, None]
         return [(CLASS_DIFFUSE, np.where(glossy, 0.0, estimate)), (CLASS_GLOSSY, np.where(glossy, estimate, 0.0))]
+
+    def row_facts(self, p):
+        """Cycles' Diffuse Toon is a diffuse closure, its Glossy Toon a glossy one (passes, light
+        visibility)."""
+        return (np.where(p.glossy, CLASS_GLOSSY, CLASS_DIFFUSE),
+                np.where(p.glossy, RAY_GLOSSY, RAY_DIFFUSE).astype(np.uint8))
 
     def _axis(self, p, wo):
         """(K,3) the cone's axis: the normal (Diffuse) or wo's mirror direction (Glossy)."""

@@ -41,7 +41,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ... import panorama, rng
+from ... import camera as camera_mod, rng
 from ...accel import offset_origin
 from ...errors import Cancelled
 from ...scene import LOBE_DIFFUSE
@@ -138,13 +138,7 @@ class IrradianceCacheIntegrator(PhotonIntegrator):
         self.rounds = 0
         self.first_id = 0
         self.interpolated = self.fallback = 0
-        cam = scene.camera
-        left, right = cam.window[0], cam.window[1]
-        self.pixel_angle = abs(right - left) / max(s.width, 1)  # perspective: at unit distance
-        if cam.panorama:  # the angle between the directions of the two middle pixels
-            u = 0.5 + np.array([-0.5, 0.5]) / max(s.width, 1)
-            d = panorama.to_direction(cam, u, np.full(2, 0.5))
-            self.pixel_angle = float(np.arccos(np.clip(np.dot(d[0], d[1]), -1.0, 1.0)))
+        self.pixel_angle = camera_mod.pixel_angle(scene.camera, s)  # perspective: at unit distance
 
     # --- render process -------------------------------------------------------------------
     def stages(self, round: int):
