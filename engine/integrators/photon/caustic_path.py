@@ -24,7 +24,7 @@ import numpy as np
 
 from ... import rng
 from ...accel import offset_origin
-from ...vec import gatherer, take
+from ...vec import gatherer, scale, take
 from .integrator import _GROUPS, _LIGHT, PHOTON_BYTES, PhotonIntegrator, _accumulate, _sample_rows
 from ..path import PathTracer
 from ..path_options import Gather
@@ -53,16 +53,19 @@ class CausticPathIntegrator(PhotonIntegrator):
         super().build(ctx)
         self.path_tracer = PathTracer(self.scene, ctx.accel, ctx.lights)
 
-    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist):
+    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist,
+                       bary=None):
         s = self.scene.settings
         at = gatherer(x, len(idx))
         rows, bx = idx[x], at(beta)
         self._caustics_at(L, rows, x, bx, at, p, ng_f, bsdf)
         self._direct_light(L, sampler.get(1 + _GROUPS * depth + _LIGHT, rows, 3), rows, x, bx, at, p, ng_f, ns,
-                           prim, bsdf, 1)
+                           prim, bsdf, 1, bary)
         # One BSDF sample at x: the other strategy of direct light, then the rest of the path.
         gs = rng.Sampler(s.seed, pixel[rows], sample[rows], s.pattern, domain=rng.GATHER)
         bs = _sample_rows(bsdf, x, gs.get(0, None, 3))
+        if self.shadows.shading_offset is not None:  # the terminator's Shading Offset
+            bs.weight = scale(bs.weight, self.shadows.shading_factor(prim[x], take(bsdf.ns, x), bs.wi))
         g = np.flatnonzero(bs.valid)
         d = take(bs.wi, g)
         o64 = take(p, x[g])

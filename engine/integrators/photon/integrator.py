@@ -353,9 +353,8 @@ class PhotonIntegrator(Integrator):
         ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2],
                            receiver=lights.receivers(prim[x]) if lights.light_linked else None)
         f, pdf_b = bsdf.eval(ls.wi, x, None, self.shadows.lifted(prim[x]))
-        shift = self.shadows.shading_factor(prim[x], at(bsdf.ns), ls.wi)
-        if shift is not None:
-            f = scale(f, shift)
+        if self.shadows.shading_offset is not None:  # the terminator's Shading Offset
+            f = scale(f, self.shadows.shading_factor(prim[x], at(bsdf.ns), ls.wi))
         cos_i = np.abs(dot(ls.wi, at(ns)))
         w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + G * pdf_b, 1e-300))
         contrib = bx * f * scale(ls.Le, np.divide(cos_i * w, ls.pdf, out=np.zeros(len(x)), where=ls.valid))
@@ -377,9 +376,8 @@ class PhotonIntegrator(Integrator):
         emission False: none of the emission the ray finds first (its light is sampled apart)."""
         u = sampler.get(0, None, 3)
         bs = _sample_rows(bsdf, pts, u)
-        shift = self.shadows.shading_factor(prim[pts], take(bsdf.ns, pts), bs.wi)  # the Shading Offset
-        if shift is not None:
-            bs.weight = scale(bs.weight, shift)
+        if self.shadows.shading_offset is not None:  # the terminator's Shading Offset
+            bs.weight = scale(bs.weight, self.shadows.shading_factor(prim[pts], take(bsdf.ns, pts), bs.wi))
         g = np.flatnonzero(bs.valid)
         d = take(bs.wi, g)
         o64 = take(p, pts[g])
