@@ -53,14 +53,13 @@ class CausticPathIntegrator(PhotonIntegrator):
         super().build(ctx)
         self.path_tracer = PathTracer(self.scene, ctx.accel, ctx.lights)
 
-    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist,
-                       bary=None):
+    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist):
         s = self.scene.settings
         at = gatherer(x, len(idx))
         rows, bx = idx[x], at(beta)
         self._caustics_at(L, rows, x, bx, at, p, ng_f, bsdf)
         self._direct_light(L, sampler.get(1 + _GROUPS * depth + _LIGHT, rows, 3), rows, x, bx, at, p, ng_f, ns,
-                           prim, bsdf, 1, bary)
+                           prim, bsdf, 1)
         # One BSDF sample at x: the other strategy of direct light, then the rest of the path.
         gs = rng.Sampler(s.seed, pixel[rows], sample[rows], s.pattern, domain=rng.GATHER)
         bs = _sample_rows(bsdf, x, gs.get(0, None, 3))

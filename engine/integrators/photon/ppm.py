@@ -135,15 +135,14 @@ class ProgressivePhotonIntegrator(PhotonIntegrator):
         L = self._render(sampler, layout.pixel[j], sample, layout.px[j], layout.py[j], stop)
         return {"L": L, "phi": self._phi, "count": self._count}
 
-    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist,
-                       bary=None):
+    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist):
         """Direct light (a light sample and a BSDF sample, balance heuristic) and the pass's
         photons within the pixel's radius."""
         s = self.scene.settings
         at = gatherer(x, len(idx))
         rows, bx = idx[x], at(beta)
         self._direct_light(L, sampler.get(1 + _GROUPS * depth + _LIGHT, rows, 3), rows, x, bx, at, p, ng_f, ns, prim,
-                           bsdf, 1, bary)
+                           bsdf, 1)
         u = rng.Sampler(s.seed, pixel[rows], sample[rows], s.pattern, domain=rng.GATHER)
         _accumulate(L, rows, bx * self._gather(u, x, p, ng_f, prim, bsdf, 1, emission_only=True))
         phi, count = self.pass_map.gather_radius(at(p), at(ng_f), self._radius_path[rows],
