@@ -12,7 +12,9 @@ sphere, a blocker collection, an emissive card linked to one sphere). For each:
 - bias: the mean over --seeds Ember renders at --samples samples of the image mean, against a
   Cycles render at --reference samples (the reference), with its standard error;
 - relMSE (engine/metrics.py, EPS 1e-2) of single renders at --samples samples against the
-  reference, Ember's and Cycles' (mean over the seeds), and their ratio.
+  reference, Ember's and Cycles' (mean over the seeds), and their ratio;
+- noise: the per-pixel standard deviation over the seeds (pooled over the image), Ember's /
+  Cycles'.
 
 --cpu-base: a checkout of Ember before this work (git archive main | tar -x -C /tmp/base); the
 script then appends bench/cpu_ab.py's CPU time per path on the Cornell box (no transparency,
@@ -75,7 +77,9 @@ def measure(name, args, tmp) -> dict:
     cycles_means = c.reshape(len(c), -1).mean(axis=1)
     rel_e = np.mean([rel_mse(x, ref) for x in e])
     rel_c = np.mean([rel_mse(x, ref) for x in c])
-    return dict(bias=bias, se=se, cycles_bias=cycles_means.mean() / ref.mean() - 1.0, rel_e=rel_e, rel_c=rel_c)
+    noise = np.sqrt(e.var(axis=0, ddof=1).mean() / c.var(axis=0, ddof=1).mean())
+    return dict(bias=bias, se=se, cycles_bias=cycles_means.mean() / ref.mean() - 1.0, rel_e=rel_e, rel_c=rel_c,
+                noise=noise)
 
 
 def cpu_ab(base: str) -> str:
@@ -119,15 +123,17 @@ def main(argv=None):
              f"path tracer, {args.samples} samples per render, {args.seeds} seeds; reference Cycles at "
              f"{args.reference} samples. Bias: Ember's image mean over the seeds / the reference's - 1 "
              "(+- one standard error; Cycles' own at the same samples beside it). relMSE (EPS "
-             f"{EPS:g}): mean over the seeds of one render's against the reference. Targets: bias within "
-             "1 %, relMSE at most 1.5x Cycles'.", "",
-             "| scene | bias | Cycles' bias | relMSE Ember | relMSE Cycles | ratio | targets |",
-             "|---|---|---|---|---|---|---|"]
+             f"{EPS:g}): mean over the seeds of one render's against the reference. Noise ratio: per-pixel "
+             "standard deviation over the seeds, Ember's / Cycles'. Targets: bias within 1 %, relMSE at most "
+             "1.5x Cycles'.", "",
+             "| scene | bias | Cycles' bias | relMSE Ember | relMSE Cycles | ratio | noise ratio | targets |",
+             "|---|---|---|---|---|---|---|---|"]
     for name, r in rows:
         ratio = r["rel_e"] / r["rel_c"]
         met = abs(r["bias"]) <= 0.01 and ratio <= 1.5
         lines.append(f"| {name} | {100 * r['bias']:+.2f} % +- {100 * r['se']:.2f} | {100 * r['cycles_bias']:+.2f} % | "
-                     f"{r['rel_e']:.5f} | {r['rel_c']:.5f} | {ratio:.2f} | {'met' if met else 'NOT met'} |")
+                     f"{r['rel_e']:.5f} | {r['rel_c']:.5f} | {ratio:.2f} | {r['noise']:.2f} | "
+                     f"{'met' if met else 'NOT met'} |")
     if args.before:
         lines += ["", f"## Before this work (the checkout at {args.before}, same measurement)", "",
                   before(args.before, args)]

@@ -94,7 +94,7 @@ def test_linking_export():
     off: the sets each object falls in and the masks each light gets."""
     from ember.engine.blender.export import export_scene
     from ember.engine.lights.linking import Links
-    sc = shadow_scenes.linking(8)
+    shadow_scenes.linking(8)
     objects = bpy.data.objects
     key, fill = objects["Key"], objects["Fill"]
     key.light_linking.receiver_collection.objects.link(objects["B"])  # A included, B now too ...

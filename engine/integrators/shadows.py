@@ -1,5 +1,7 @@
-"""Shadow rays through transparent surfaces (Cycles' transparent shadows,
-integrator/intersect_shadow.h and shade_shadow.h).
+"""Shadow rays as Cycles casts them: through transparent surfaces (its transparent shadows,
+integrator/intersect_shadow.h and shade_shadow.h), from origins the shadow terminator's
+Geometry Offset lifts (light/sample.h), blocked only by an emitter's blockers (shadow linking);
+and the Shading Offset's factor on the BSDF (closure/bsdf.h), which belongs with them.
 
 A shadow ray is blocked by any surface whose material has no transparent closure. Surfaces
 of materials with one (Transparent BSDF, Principled Alpha, alpha from a texture) let it

@@ -24,7 +24,7 @@ import numpy as np
 
 from ... import rng
 from ...accel import offset_origin
-from ...vec import gatherer, take
+from ...vec import gatherer, scale, take
 from .integrator import _GROUPS, _LIGHT, PHOTON_BYTES, PhotonIntegrator, _accumulate, _sample_rows
 from ..path import PathTracer
 from ..path_options import Gather
@@ -67,6 +67,8 @@ class CausticPathIntegrator(PhotonIntegrator):
         # One BSDF sample at x: the other strategy of direct light, then the rest of the path.
         gs = rng.Sampler(s.seed, pixel[rows], sample[rows], s.pattern, domain=rng.GATHER)
         bs = _sample_rows(bsdf, x, gs.get(0, None, 3))
+        if self.shadows.shading_offset is not None:  # the terminator's Shading Offset
+            bs.weight = scale(bs.weight, self.shadows.shading_factor(prim[x], take(bsdf.ns, x), bs.wi))
         g = np.flatnonzero(bs.valid)
         d = take(bs.wi, g)
         o64 = take(p, x[g])

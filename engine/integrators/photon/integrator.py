@@ -162,6 +162,7 @@ class PhotonIntegrator(Integrator):
         self.programs = MaterialPrograms.of(self.scene.materials)
         self.flat_normal = flat_normals(self.scene.mesh)
         self.shadows = ShadowRays(self.scene, RayVisibility(ctx.accel, self.scene.mesh), self.programs, ctx.lights.links)
+        self._bary = None  # the barycentrics of the camera pass's points being shaded
         self.stores = diffuse_materials(self.scene.materials)
         self.emissive_material = self.scene.materials.emission.mean(axis=1) > 0
         # per triangle; a miss (-1) reads the last entry, False
@@ -265,8 +266,8 @@ class PhotonIntegrator(Integrator):
             diffuse = self.stores[mat] & bsdf.has_smooth
             x = np.flatnonzero(diffuse)
             if len(x):
-                self._shade_diffuse(L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist,
-                                    bary)
+                self._bary = bary  # the terminator offsets' (_direct_light)
+                self._shade_diffuse(L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist)
             spec = np.flatnonzero(~diffuse)
             if depth == s.max_depth or len(spec) == 0:
                 break
@@ -285,10 +286,9 @@ class PhotonIntegrator(Integrator):
             skip, tmax = prim[ok], None
         return np.ascontiguousarray(L.T)
 
-    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist,
-                       bary=None):
+    def _shade_diffuse(self, L, sampler, idx, x, beta, p, ng_f, ns, wo, prim, bsdf, sample, pixel, depth, dist):
         """Direct light, caustics and final gathering at the diffuse points x (rows of idx);
-        dist: the camera paths' lengths; bary (N,3) the points' barycentrics."""
+        dist: the camera paths' lengths."""
         s = self.scene.settings
         at = gatherer(x, len(idx))
         rows, bx = idx[x], at(beta)
@@ -314,7 +314,7 @@ class PhotonIntegrator(Integrator):
             return
         if not indirect:
             self._direct_light(L, sampler.get(1 + _GROUPS * depth + _LIGHT, rows, 3), rows, x, bx, at, p, ng_f, ns,
-                               prim, bsdf, G, bary)
+                               prim, bsdf, G)
         if G == 0:
             return
         # Final gathering: G rays per point, stratified over the pixel's camera samples.
@@ -354,19 +354,19 @@ class PhotonIntegrator(Integrator):
             return ~self.ctx.accel.occluded(o, t)
         return accept
 
-    def _direct_light(self, L, u_light, rows, x, bx, at, p, ng_f, ns, prim, bsdf, G, bary=None):
+    def _direct_light(self, L, u_light, rows, x, bx, at, p, ng_f, ns, prim, bsdf, G):
         """One light sample (uniforms u_light (K,3)) at each diffuse point x (K,) (rows of L),
         weighted by the balance heuristic against G BSDF samples (Veach's multi-sample MIS;
-        G = 0: light sampling alone); the shadow terminator's offsets as the path tracer's."""
+        G = 0: light sampling alone); the shadow terminator's offsets as the path tracer's (the
+        barycentrics of the batch's points: self._bary)."""
         lights = self.ctx.lights
         if lights.empty:
             return
         ls = lights.sample(at(p), u_light[:, 2], u_light[:, :2],
                            receiver=lights.receivers(prim[x]) if lights.light_linked else None)
         f, pdf_b = bsdf.eval(ls.wi, x, None, self.shadows.lifted(prim[x]))
-        shift = self.shadows.shading_factor(prim[x], at(bsdf.ns), ls.wi)
-        if shift is not None:
-            f = scale(f, shift)
+        if self.shadows.shading_offset is not None:  # the terminator's Shading Offset
+            f = scale(f, self.shadows.shading_factor(prim[x], at(bsdf.ns), ls.wi))
         cos_i = np.abs(dot(ls.wi, at(ns)))
         w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + G * pdf_b, 1e-300))
         contrib = bx * f * scale(ls.Le, np.divide(cos_i * w, ls.pdf, out=np.zeros(len(x)), where=ls.valid))
@@ -374,7 +374,7 @@ class PhotonIntegrator(Integrator):
         if len(test):
             t = x[test]
             o_shadow, skip = self.shadows.origin(take(at(p), test), towards(take(at(ng_f), test), take(ls.wi, test)),
-                                                 prim[t], None if bary is None else take(bary, t),
+                                                 prim[t], None if self._bary is None else take(self._bary, t),
                                                  take(getattr(bsdf, "n_smooth", bsdf.ns), t), take(at(ng_f), test),
                                                  take(ls.wi, test))
             lit, T = self.shadows.trace(o_shadow, take(ls.target, test), skip, ls.target_prim[test],
@@ -388,9 +388,8 @@ class PhotonIntegrator(Integrator):
         emission False: none of the emission the ray finds first (its light is sampled apart)."""
         u = sampler.get(0, None, 3)
         bs = _sample_rows(bsdf, pts, u)
-        shift = self.shadows.shading_factor(prim[pts], take(bsdf.ns, pts), bs.wi)  # the Shading Offset
-        if shift is not None:
-            bs.weight = scale(bs.weight, shift)
+        if self.shadows.shading_offset is not None:  # the terminator's Shading Offset
+            bs.weight = scale(bs.weight, self.shadows.shading_factor(prim[pts], take(bsdf.ns, pts), bs.wi))
         g = np.flatnonzero(bs.valid)
         d = take(bs.wi, g)
         o64 = take(p, pts[g])
