@@ -87,3 +87,37 @@ def test_the_caustic_estimate_keeps_the_photons_flux(traced):
     integral = E[:, 0].sum() * h * h
     flux = photons["flux"][:, 0].astype(np.float64).sum() / (N_EMBER // 4)
     assert abs(integral / flux - 1) < 0.005, (integral, flux)
+
+
+@pytest.mark.slow
+@pytest.mark.blender
+@pytest.mark.parametrize("name", ["caustic_point", "caustic"])
+def test_light_through_glass_in_the_image_matches_the_particle_tracer(name):
+    """`photon` on the bench scenes at 64 x 64 against Mitsuba 3's particle tracer
+    (bench/references): the sphere's whole shadow (79 % of its light came through or off the
+    glass) within 2 % and the shadow outside the caustic (95 % light that bounced off the
+    floor or wall) within 3 %, each plus a t band of four seeds (family-wise level 0.01).
+    bench/results/photon/glass_flux.md has the same regions against the NumPy tracer too."""
+    pytest.importorskip("bpy")
+    from scipy import stats as st
+
+    from bench import glass_flux as gf
+    from ember.engine import imageio
+    from stats import sidak_alpha
+
+    sc = gf.open_scene(name)
+    glass, _, light, _ = gf.blender_geometry(sc)
+    base = gf.pixel_masks(sc, glass, light)
+    ch, _ = imageio.read_exr(gf.ROOT / "bench" / "references" / f"{name}_64.exr")
+    reference = np.stack([ch[c] for c in "RGB"], -1).astype(np.float64)
+    masks = gf.region_masks(base, reference)
+    seeds = 4
+    ratios = {k: [] for k in ("shadow", "shadow outside caustic")}
+    for seed in range(1, seeds + 1):
+        img, _ = gf.ember_image(name, None, "photon", seed=seed, samples=8)
+        for k in ratios:
+            ratios[k].append(img[masks[k]].mean() / reference[masks[k]].mean())
+    t = st.t.ppf(1 - sidak_alpha(0.01, 4) / 2, seeds - 1)
+    for k, tol in (("shadow", 0.02), ("shadow outside caustic", 0.03)):
+        r = np.array(ratios[k])
+        assert abs(r.mean() - 1) < tol + t * r.std(ddof=1) / np.sqrt(seeds), (k, r)
