@@ -133,3 +133,42 @@ def many_lights(n=1000, kind="triangle", size=0.1, lift=0.3, extent=15.0, decade
     mesh = quads_mesh(quads, ids)
     camera = perspective((0.0, -22.0, 14.0), (0.0, -2.0, 0.0), 50)
     return Scene(mesh, Materials.make(mats), Lights.make(light_rows), World(), camera, settings(**kw))
+
+
+def icosphere(center, radius, subdivisions=2):
+    """A flat-faceted icosphere (outward winding): the icosahedron's faces split in four
+    `subdivisions` times, vertices pushed onto the sphere. Returns (F,3,3) triangles."""
+    t = (1 + 5 ** 0.5) / 2
+    v = np.array([(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t), (0, -1, -t), (0, 1, -t),
+                  (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)], np.float64)
+    f = np.array([(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
+                  (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5),
+                  (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)])
+    tris = v[f] / np.linalg.norm(v[f], axis=2, keepdims=True)
+    for _ in range(subdivisions):
+        a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+        ab, bc, ca = [m / np.linalg.norm(m, axis=1, keepdims=True) for m in (a + b, b + c, c + a)]
+        tris = np.concatenate([np.stack(x, 1) for x in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+    return np.asarray(center, np.float64) + radius * tris
+
+
+def glass_sphere_on_floor(light: dict, subdivisions=2, **kw):
+    """bench/glass_particles.py's scene: a flat-faceted glass icosphere (IOR 1.5, radius 0.5)
+    just above a 4 x 4 m floor, a back wall at y = 2 (both diffuse 0.8), black world; `light`
+    a Lights.make row. Returns (scene, glass triangles (F,3,3))."""
+    from ember.engine.scene import LOBE_DIELECTRIC
+    glass = icosphere((0.0, 0.0, 0.501), 0.5, subdivisions)
+    floor = [[(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)], [(-2, 2, 0), (-2, 2, 2.5), (2, 2, 2.5), (2, 2, 0)]]
+    planes = quads_mesh(floor, [0, 0])
+    n = np.cross(glass[:, 1] - glass[:, 0], glass[:, 2] - glass[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    v = np.concatenate([planes.vertices, glass.reshape(-1, 3).astype(np.float32)])
+    t = np.concatenate([planes.triangles, len(planes.vertices) + np.arange(3 * len(glass), dtype=np.int32).reshape(-1, 3)])
+    normals = np.concatenate([planes.normals, np.repeat(n[:, None], 3, axis=1).astype(np.float32)])
+    mat = np.concatenate([planes.material, np.ones(len(glass), np.int32)])
+    mats = Materials.make([dict(kind=MAT_DIFFUSE, base_color=(0.8,) * 3, name="floor"),
+                           dict(name="glass", lobes=[dict(kind=LOBE_DIELECTRIC, roughness=0.0, ior=1.5,
+                                                          color=(1.0,) * 3, tint=(1.0,) * 3)])])
+    scene = Scene(Mesh(v, t, normals, mat), mats, Lights.make([light]), World(),
+                  perspective((0.0, -3.2, 2.2), (-0.2, 0.1, 0.3), 40), settings(**kw))
+    return scene, glass

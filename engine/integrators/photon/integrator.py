@@ -12,7 +12,8 @@ A camera path follows specular surfaces (delta lobes, and lobes too sharp to sto
 to its first diffuse point x, where the radiance is split as Jensen does:
   direct    one light sample, combined with the G gather rays (BSDF-sampled) by the
             balance heuristic over all G + 1 samples (Veach's multi-sample MIS);
-  caustics  the caustic map's radiance estimate at x (L S+ D E);
+  caustics  the caustic map's radiance estimate at x (L S+ D E), each photon's flux spread
+            over its own k-nearest disc (PhotonMap.radiance_scattered: keeps the flux);
   indirect  final gathering: G BSDF-sampled rays from x; a ray's first diffuse hit y gives the
             global map's radiance estimate there (or E(y) of the nearest radiance photon
             times the albedo / pi); specular hits are followed without emission (that light
@@ -174,6 +175,7 @@ class PhotonIntegrator(Integrator):
             s = self.scene.settings
             self.global_map = PhotonMap.from_packed(split("global"), max(s.photons, 1))
             self.caustic_map = PhotonMap.from_packed(split("caustic"), max(s.caustic_photons, 1))
+            self.caustic_map.set_photon_radii(s.photon_k, self.r_caustic)
         if "radiance.position" in arrays:
             self.radiance_photons = RadiancePhotons.from_packed(split("radiance"))
 
@@ -334,9 +336,11 @@ class PhotonIntegrator(Integrator):
         if self.caustic_map is None or not len(self.caustic_map):
             return
         s = self.scene.settings
-        Lc, _ = self.caustic_map.radiance(at(p), at(ng_f), lambda r, wi: bsdf.eval(wi, x[r])[0], s.photon_k,
-                                          self.r_caustic, kernel=s.photon_kernel, min_count=MIN_COUNT,
-                                          accept=self.visible(at(p), at(ng_f), self.caustic_map))
+        # Each caustic photon spreads its flux over its own k-nearest disc: a sharp caustic keeps
+        # its energy (the k-nearest disc of a dark point beside it would reach in and add light).
+        Lc = self.caustic_map.radiance_scattered(at(p), at(ng_f), lambda r, wi: bsdf.eval(wi, x[r])[0],
+                                                 kernel=s.photon_kernel,
+                                                 accept=self.visible(at(p), at(ng_f), self.caustic_map))
         _accumulate(L, rows, bx * Lc)
         if self._caustics is not None:
             _accumulate(self._caustics, rows, bx * Lc)

@@ -10,6 +10,11 @@ over the photons near x (k nearest within r_max), r = the distance to the k-th p
 when fewer are found), N_e = photon PATHS emitted (never the stored count), W a kernel with
 int_disc W = c pi r^2. Irradiance E is the same sum with f_r = 1.
 
+The same radius can be chosen per photon instead (`set_photon_radii`, `radiance_scattered`:
+the sample-point form, each photon's flux spread over the disc of its own k-th neighbour): its
+integral over a surface is the flux the photons carry, where the per-point radius above adds
+light beside a sharp caustic (a dark point's disc reaches into it). The caustic map uses it.
+
 The k-th photon fixes r and so lies on the boundary of the disc: Jensen's sum includes it, which
 biases a uniform density by k / (k - 1) (pi r_k^2 lambda is Gamma(k) distributed, E[1/Gamma(k)] =
 1/(k-1)). Here it is left out: given r, the other k - 1 photons are uniform in the disc, so the
@@ -365,6 +370,70 @@ class PhotonMap(_Points):
         """Irradiance E (N,3) [W m^-2] from photons arriving on the side of n; see `radiance`.
         Returns (E (N,3), r (N,))."""
         return self.radiance(p, n, None, k, r_max, kernel, min_count, accept)
+
+    def set_photon_radii(self, k: int, r_max: float) -> None:
+        """Give every photon its own kernel radius for `radiance_scattered`: the distance to
+        its k-th nearest other photon, at most r_max (one k-nearest query per photon)."""
+        m = len(self)
+        self.radius2 = np.full(m, r_max * r_max, np.float32)
+        k_query = min(k + 1, m)  # the photon itself is its own nearest
+        if k_query < 2:
+            return
+        for s, e in _chunks(m, k_query):
+            d2, _ = self._index.query(self.position[s:e], k_query, r_max * (1 + 1e-6))
+            self.radius2[s:e] = np.minimum(d2[:, -1], r_max * r_max) if k_query == k + 1 else r_max * r_max
+
+    def radiance_scattered(self, p, n, f, kernel: str = "uniform", accept=None):
+        """Reflected radiance L (N,3) at points p (N,3) with normals n (N,3) from photons that
+        each spread their flux over their own disc (`set_photon_radii`): the sample-point
+        form of the adaptive estimate, sum_p f Phi_p W(d_p / h_p) / (N_e c pi h_p^2) over the
+        photons whose disc holds x. Each photon's weights integrate to its flux over the
+        surface, so the estimate keeps the light the photons carry; the k-nearest form
+        (`radiance`) adds light next to a sharp caustic, where a dark point's radius reaches
+        into it. Unbiased on a locally uniform density like the k-nearest form. f, accept as
+        in `radiance`."""
+        weight, c = _kernel(kernel)
+        p = np.asarray(p).reshape(-1, 3)
+        n = np.asarray(n).reshape(-1, 3)
+        N = len(p)
+        L = np.zeros((N, 3))
+        if len(self) == 0 or N == 0:
+            return L
+        r_max = float(np.sqrt(self.radius2.max()))
+        pending = np.arange(N)
+        k = 32
+        # k-nearest with k growing x4 until no point has all k inside r_max
+        while len(pending):
+            k = min(k, len(self))
+            unsaturated = []
+            for s, e in _chunks(len(pending), k):
+                q = pending[s:e]
+                d2, idx = self._index.query(take(p, q), k, r_max * (1 + 1e-6))
+                found = np.isfinite(d2)
+                done = ~found[:, -1] | (k == len(self))
+                rows, cols = np.nonzero(found & done[:, None])
+                j = idx[rows, cols]
+                h2 = self.radius2[j].astype(np.float64)
+                d2_in = d2[rows, cols].astype(np.float64)
+                inside = d2_in < h2
+                rows, j, h2, d2_in = rows[inside], j[inside], h2[inside], d2_in[inside]
+                g = q[rows]
+                ok, wi = self._accept(j, take(n, g))
+                if accept is not None and ok.any():
+                    ok[ok] = accept(g[ok], j[ok])
+                g, j, wi, h2, d2_in = g[ok], j[ok], wi[ok], h2[ok], d2_in[ok]
+                norm = np.divide(1.0, c * np.pi * h2, out=np.zeros(len(g)), where=h2 > 0)
+                if weight is not None:
+                    norm *= weight(d2_in / np.where(h2 > 0, h2, 1.0))
+                contrib = take(self.flux, j).astype(np.float64)
+                if f is not None:
+                    contrib *= f(g, wi)
+                for ch in range(3):
+                    L[:, ch] += np.bincount(g, weights=contrib[:, ch] * norm, minlength=N)
+                unsaturated.append(q[~done])
+            pending = np.concatenate(unsaturated) if unsaturated else pending[:0]
+            k *= 4
+        return L / self.n_emitted
 
     def gather_radius(self, p, n, r, f=None, accept=None):
         """All accepted photons within a fixed radius r (N,) [m] of each point (progressive
