@@ -330,3 +330,34 @@ def test_an_emitter_hidden_from_some_rays_still_emits(hidden_from):
     np.testing.assert_allclose(sc.materials.emission[0], [4.0, 4.0, 4.0], rtol=1e-6)
     assert sc.materials.graphs and sc.materials.graphs[0] is not None
     assert warnings == []
+
+
+def test_default_surface_is_a_default_principled():
+    """An object without a material renders with Cycles' default surface: the defaults of a
+    Principled BSDF made in Blender (the table must follow Blender's), exported to the same
+    lobes as a new material's node tree."""
+    from ember.engine.nodes.default_surface import PRINCIPLED_DEFAULTS, PRINCIPLED_PROPS
+    new_scene()
+    fresh = bpy.data.materials.new("Fresh")  # Blender's new material: Principled BSDF -> Output
+    node = next(n for n in fresh.node_tree.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    table = {name: (kind, value) for name, kind, value in PRINCIPLED_DEFAULTS}
+    assert set(table) == {s.identifier for s in node.inputs}
+    for s in node.inputs:
+        kind, value = table[s.identifier]
+        assert kind == s.type.lower()
+        own = np.ravel(s.default_value)[:3] if kind in ("rgba", "vector") else s.default_value
+        assert np.allclose(own, value, rtol=0, atol=1e-6), s.identifier
+    assert all(getattr(node, key) == value for key, value in PRINCIPLED_PROPS)
+
+    bpy.ops.mesh.primitive_plane_add(location=(0.0, 0.0, 0.0))  # no material
+    bpy.ops.mesh.primitive_plane_add(location=(3.0, 0.0, 0.0))
+    bpy.context.active_object.data.materials.append(fresh)
+    sc, warnings = export_scene(bpy.context.evaluated_depsgraph_get())
+    m = sc.materials
+    default, made = (np.flatnonzero(m.lobe_material == m.names.index(n)) for n in ("default", "Fresh"))
+    assert len(default) == len(made) >= 2  # a specular layer over a diffuse base
+    for field in ("lobe_kind", "lobe_weight", "lobe_color", "lobe_tint", "lobe_roughness", "lobe_ior",
+                  "lobe_fresnel", "lobe_distribution"):
+        a, b = getattr(m, field)[default], getattr(m, field)[made]
+        assert np.allclose(a, b, rtol=0, atol=1e-6), field  # Blender keeps float32 defaults
+    assert not any("default" in w for w in warnings)

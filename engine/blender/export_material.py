@@ -44,6 +44,7 @@ from ..scene import (DIST_GGX, DISTRIBUTIONS, EXT_CLIP, EXT_EXTEND, EXT_MIRROR, 
                      LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG, LOBE_TRANSPARENT, MAT_DIFFUSE, MAT_EMISSION_ONLY,
                      MAT_NODES, MAT_PHONG, TEX_ALPHA, TEX_COLOR, Materials)
 from ..nodes.bump import bump_from_displacement
+from ..nodes.default_surface import default_surface
 from ..nodes.hits import provides
 from ..nodes.material import compiled_material, with_phong
 from ..textures import LUMINANCE
@@ -598,8 +599,7 @@ def _node_row(mat, out, phong: bool, warn) -> dict | None:
     """The material through the node evaluator (engine/nodes/): its lobes, and its graph where
     they vary over the surface; None where the evaluator would approximate more than the
     conversion above (a node it cannot build, or one that reads what the renderer does not give
-    a program yet: engine/nodes/hits.py provides). A varying emission's table value is its mean
-    over probe points (engine/nodes/material.py): what says the material emits at all."""
+    a program yet: engine/nodes/hits.py provides)."""
     notes = []
     sockets = {"surface": out.inputs["Surface"]}
     # Displacement: as Cycles' Bump Only (a shading normal from the height, material.py), and
@@ -611,6 +611,16 @@ def _node_row(mat, out, phong: bool, warn) -> dict | None:
     graph = export_graph(sockets, notes.append)
     if "displacement" in sockets:
         graph = bump_from_displacement(graph, object_space=method == "BOTH")
+    if displaced and method != "BUMP":
+        notes.append("displacement of the mesh (ignored" + ("; its bump is rendered)" if method == "BOTH" else ")"))
+    return graph_row(graph, mat.name, phong, warn, notes)
+
+
+def graph_row(graph, name: str, phong: bool, warn, notes=()) -> dict | None:
+    """The Materials row of a node graph (see _node_row), or None where the evaluator cannot
+    render it; notes: what the export already approximated. A varying emission's table value
+    is its mean over probe points (engine/nodes/material.py): what says the material emits."""
+    notes = list(notes)
     if phong:
         graph = with_phong(graph)
     try:
@@ -622,14 +632,12 @@ def _node_row(mat, out, phong: bool, warn) -> dict | None:
         return None
     if not all(provides(field) for field in compiled.program.reads):  # the renderer cannot run it yet
         return None
-    notes += list(compiled.notes)
-    if displaced and method != "BUMP":
-        notes.append("displacement of the mesh (ignored" + ("; its bump is rendered)" if method == "BOTH" else ")"))
+    notes = list(compiled.notes) + notes
     if notes:
-        warn(f"Material '{mat.name}': approximated " + "; ".join(notes) + ".")
+        warn(f"Material '{name}': approximated " + "; ".join(notes) + ".")
     base = next((lobe.get("color") for lobe in compiled.lobes if lobe["kind"] in (LOBE_DIFFUSE, LOBE_OREN_NAYAR)),
                 (0.0, 0.0, 0.0))
-    row = dict(kind=MAT_NODES, base_color=tuple(base), emission=tuple(compiled.emission_mean), name=mat.name,
+    row = dict(kind=MAT_NODES, base_color=tuple(base), emission=tuple(compiled.emission_mean), name=name,
                lobes=[dict(lobe) for lobe in compiled.lobes], graph=None if compiled.constant else graph,
                holdout=compiled.holdout)
     if not compiled.constant:
@@ -645,7 +653,7 @@ def _is_plain_diffuse(lobes) -> bool:
 
 
 class MaterialTable:
-    """Global material table; index(None) is the default grey material.
+    """Global material table; index(None) is Cycles' default surface (a default Principled BSDF).
 
     scene: the bpy Scene whose `ember.glossy_as_phong` setting applies (optional)."""
 
@@ -661,7 +669,8 @@ class MaterialTable:
         if mat is None:
             if self._default is None:
                 self._default = len(self._rows)
-                self._rows.append(dict(kind=MAT_DIFFUSE, base_color=GREY, emission=(0, 0, 0), name=DEFAULT_NAME))
+                # Cycles' default surface (engine/nodes/default_surface.py)
+                self._rows.append(graph_row(default_surface(), DEFAULT_NAME, self._phong, self._warn))
             return self._default
         key = (getattr(mat, "original", None) or mat).as_pointer()
         i = self._index.get(key)
