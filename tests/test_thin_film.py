@@ -186,6 +186,37 @@ def test_smooth_glass_with_a_film_keeps_all_light(inside):
     np.testing.assert_allclose(reflected, F_c, rtol=1e-3)
 
 
+def test_beckmann_glass_is_walters_model_with_beckmanns_distribution():
+    """The Beckmann glass lobe's f against Walter et al.'s eqs. 20-21 written here with
+    beckmann.D and G2 (reflection F D G2 / (4 cos_o cos_i); refraction |wo.h wi.h| (1 - F) D G2
+    / (cos_o cos_i (wo.h + eta wi.h)^2), Ember's radiance scaling 1 / eta^2): not GGX's."""
+    from ember.engine.bsdf import beckmann, microfacet
+    spec, inside = LOBE_CASES["glass_beckmann_inside"]
+    spec = dict(spec, color=(1.0, 1.0, 1.0), tint=(1.0, 1.0, 1.0))
+    n = 2000
+    lobe, p = _lobe(spec, n, inside=False)
+    rng = np.random.default_rng(8)
+    wo = np.tile([np.sin(0.6), 0.0, np.cos(0.6)], (n, 1))
+    wi = rng.normal(size=(n, 3))
+    wi /= np.linalg.norm(wi, axis=1, keepdims=True)
+    f, _ = lobe.eval(p, wo, wi)
+    alpha, eta = 0.16, 1.5
+    up = wi[:, 2] > 0
+    h = np.where(up[:, None], wo + wi, -(wo + eta * wi))
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    h *= np.sign(h[:, 2:3])
+    c_o, c_i = (wo * h).sum(1), (wi * h).sum(1)
+    F = fresnel.dielectric(c_o, eta)
+    dg = beckmann.D(alpha, h) * beckmann.G2(alpha, wo, wi)
+    refl = F * dg / (4 * wo[:, 2] * wi[:, 2])
+    refr = np.abs(c_o * c_i) * (1 - F) * dg / (np.abs(wo[:, 2] * wi[:, 2]) * (c_o + eta * c_i) ** 2)
+    valid = c_o > 0
+    expected = np.where(valid, np.where(up, refl, np.where(c_i < 0, refr, 0.0)), 0.0)
+    np.testing.assert_allclose(f[:, 0], expected, rtol=1e-6, atol=1e-12)
+    assert np.abs(f[:, 0] - np.where(up, F * microfacet.D(alpha, h) * microfacet.G2(alpha, wo, wi)
+                                     / (4 * wo[:, 2] * wi[:, 2]), f[:, 0])).max() > 0.01
+
+
 def test_refraction_only_never_reflects_and_keeps_the_refraction():
     """The Refraction BSDF from outside at 60 degrees: no reflection, and (smooth) all light
     refracted (Cycles' refraction closure has no Fresnel factor)."""

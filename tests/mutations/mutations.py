@@ -1052,7 +1052,7 @@ MUTATIONS = [
          file="engine/nodes/shaders.py",
          old='color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=spec_tint, fresnel="dielectric", roughness=rough,',
          new='color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=ONES, fresnel="dielectric", roughness=rough,',
-         tests=["tests/test_thin_film.py"]),
+         tests=["tests/test_thin_film.py", "tests/test_export_material.py"]),
     dict(name="glass_beckmann_as_ggx",
          note="Beckmann glass rendered with GGX",
          file="engine/bsdf/lobes/dielectric.py",

@@ -39,7 +39,6 @@ _MIRROR_XY = np.array([-1.0, -1.0, 1.0])  # reflection about the normal
 # and anisotropic GGX and Beckmann.
 MODEL_GGX, MODEL_BECKMANN, MODEL_ASHIKHMIN, MODEL_GGX_ANISO, MODEL_BECKMANN_ANISO = 0, 1, 2, 3, 4
 _MODELS = (microfacet, beckmann, ashikhmin_shirley, anisotropic.GGX_ANISO, anisotropic.BECKMANN_ANISO)
-_ANISO = {MODEL_GGX: MODEL_GGX_ANISO, MODEL_BECKMANN: MODEL_BECKMANN_ANISO}
 _COS_82 = 1.0 / 7.0
 
 
