@@ -32,20 +32,23 @@ LOBE_MICROFACET = 2  # GGX reflection, alpha = roughness^2; a perfect mirror whe
 LOBE_DIELECTRIC = 3  # GGX (or smooth) reflection + refraction with the exact Fresnel of ior
 LOBE_TRANSPARENT = 4  # straight pass-through (alpha, Transparent BSDF)
 LOBE_OREN_NAYAR = 5  # rough diffuse: Cycles' energy-preserving Oren-Nayar, sigma = roughness
-LOBE_KINDS = 6
+LOBE_SHEEN = 6  # Cycles' microfiber sheen (an LTC lobe) or, with DIST_VELVET, the Ashikhmin velvet
+LOBE_KINDS = 7
 
 # Fresnel of LOBE_MICROFACET (Cycles' models).
 FRESNEL_NONE = 0  # F = colour (Glossy BSDF)
 FRESNEL_F82 = 1  # conductor: F0 = colour, F82 tint = tint (Principled metallic, Metallic BSDF)
 FRESNEL_DIELECTRIC = 2  # exact Fresnel of ior remapped to F0 = F0(ior) tint .. 1 (Principled)
+FRESNEL_COAT = 3  # Principled coat: exact Fresnel of ior times colour (the coat weight); tint: Coat Tint
 
 # Microfacet distribution of LOBE_MICROFACET and LOBE_DIELECTRIC (the nodes' `distribution`).
 DIST_GGX = 0  # single-scattering GGX
 DIST_MULTI_GGX = 1  # GGX with Cycles' energy compensation (engine/bsdf/multiscatter.py)
 DIST_BECKMANN = 2  # Beckmann (engine/bsdf/beckmann.py): microfacet lobes only
 DIST_ASHIKHMIN_SHIRLEY = 3  # Ashikhmin-Shirley (engine/bsdf/ashikhmin_shirley.py): microfacet lobes only
+DIST_VELVET = 4  # Sheen BSDF's Ashikhmin velvet (sheen lobes; any other value: microfiber)
 DISTRIBUTIONS = {"GGX": DIST_GGX, "MULTI_GGX": DIST_MULTI_GGX, "BECKMANN": DIST_BECKMANN,
-                 "ASHIKHMIN_SHIRLEY": DIST_ASHIKHMIN_SHIRLEY}
+                 "ASHIKHMIN_SHIRLEY": DIST_ASHIKHMIN_SHIRLEY, "ASHIKHMIN": DIST_VELVET}
 
 # Image texture lookups (Cycles' Image Texture node).
 EXT_REPEAT, EXT_EXTEND, EXT_CLIP, EXT_MIRROR = 0, 1, 2, 3

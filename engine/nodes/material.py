@@ -25,8 +25,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..scene import (DISTRIBUTIONS, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE,
-                     LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG, LOBE_TRANSPARENT, part_digest)
+from ..scene import (DISTRIBUTIONS, FRESNEL_COAT, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE, LOBE_DIELECTRIC,
+                     LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG, LOBE_SHEEN, LOBE_TRANSPARENT,
+                     part_digest)
 from . import light_path
 from .closures import closures
 from .graph import Graph
@@ -35,8 +36,9 @@ from .program import Program, compile
 from .state import ShadingState
 
 LOBE_OF = {"diffuse": LOBE_DIFFUSE, "phong": LOBE_PHONG, "microfacet": LOBE_MICROFACET,
-           "dielectric": LOBE_DIELECTRIC, "transparent": LOBE_TRANSPARENT, "oren_nayar": LOBE_OREN_NAYAR}
-FRESNEL_OF = {"none": FRESNEL_NONE, "f82": FRESNEL_F82, "dielectric": FRESNEL_DIELECTRIC}
+           "dielectric": LOBE_DIELECTRIC, "transparent": LOBE_TRANSPARENT, "oren_nayar": LOBE_OREN_NAYAR,
+           "sheen": LOBE_SHEEN}
+FRESNEL_OF = {"none": FRESNEL_NONE, "f82": FRESNEL_F82, "dielectric": FRESNEL_DIELECTRIC, "coat": FRESNEL_COAT}
 # Lobe inputs a closure may carry, and whether each is a colour or vector (3 components).
 PARAMS = {"color": True, "tint": True, "roughness": False, "ior": False, "exponent": False}
 # One plausible shading point: what the probe run reads.

@@ -10,6 +10,7 @@ module here and one entry in LOBES; phase functions (volumes) have the same inte
     3     Dielectric    glossy + transmit  glossy / transmission            smooth or ior ~ 1
     4     Transparent   none               transmission                     always
     5     OrenNayar     diffuse            diffuse                          never
+    6     Sheen         diffuse            diffuse (velvet: glossy)         never
 """
 from __future__ import annotations
 
@@ -23,9 +24,11 @@ from .henyey_greenstein import HenyeyGreenstein
 from .microfacet import Microfacet
 from .oren_nayar import OrenNayar
 from .phong import Phong
+from .sheen import Sheen
 from .transparent import Transparent
 
-LOBES: tuple[SurfaceLobe, ...] = (Diffuse(), Phong(), Microfacet(), Dielectric(), Transparent(), OrenNayar())
+LOBES: tuple[SurfaceLobe, ...] = (Diffuse(), Phong(), Microfacet(), Dielectric(), Transparent(), OrenNayar(),
+                               Sheen())
 assert [lobe.kind for lobe in LOBES] == list(range(LOBE_KINDS)), "LOBES is indexed by kind id"
 PHASE_FUNCTIONS: tuple[Lobe, ...] = (HenyeyGreenstein(),)
 
