@@ -1,6 +1,6 @@
 """Regenerate engine/bsdf/sheen_ltc.npz, the microfiber sheen's LTC table (engine/bsdf/sheen.py).
 
-    ./dev python tools/sheen_table.py [--paths 200000] [--seed 0]
+    ./dev python tools/sheen_table.py [--paths 400000] [--seed 0]
 
 The reference is Zeltner, Burley & Chiang's (2022) volumetric sheen: a slab of unit thickness
 and density 1 of fibre-like SGGX microflakes (fibres along the normal, cross section
@@ -9,8 +9,9 @@ flakes of albedo 1, light entering from the top and walked for at most 16 scatte
 a walk that stops while still inside counts as leaving along its last direction, as in the
 paper's fitting code. At each node of the 32 x 32 grid over (roughness, mu) (both max(0.01,
 k / 31), as the paper's) R is the fraction of walks that come out of the top, and (a, b)
-the LTC whose density is most likely to have produced their directions (maximum likelihood,
-Nelder-Mead, warm-started from the next rougher node).
+minimise the paper's objective: the L3 distance between R x the LTC density and a histogram
+of the walks' exit directions on 32 x 32 cells of (theta, phi) (Nelder-Mead from the LTC of
+maximum likelihood, warm-started from the next rougher node).
 """
 from __future__ import annotations
 
@@ -97,8 +98,9 @@ def walk(mu: float, roughness: float, n: int, rng) -> np.ndarray:
     return np.concatenate(out)
 
 
-def fit(w: np.ndarray, x0) -> np.ndarray:
-    """(a, b) maximising the LTC log-likelihood of directions w (M,3) in the view frame."""
+def fit_likelihood(w: np.ndarray, x0) -> np.ndarray:
+    """(a, b) maximising the LTC log-likelihood of directions w (M,3) in the view frame: the
+    starting point of fit()."""
     logz = np.log(np.maximum(w[:, 2], 1e-300)).sum()
 
     def nll(p):
@@ -111,6 +113,35 @@ def fit(w: np.ndarray, x0) -> np.ndarray:
     return minimize(nll, x0, method="Nelder-Mead", options=dict(xatol=1e-5, fatol=1e-6, maxiter=2000)).x
 
 
+BINS = 32  # theta (0, pi/2) x phi (0, pi) cells of the fit, as the paper's
+_theta = (np.arange(BINS) + 0.5) / BINS * 0.5 * np.pi
+_phi = (np.arange(BINS) + 0.5) / BINS * np.pi
+_PHI, _THETA = np.meshgrid(_phi, _theta)
+CELLS = np.stack([np.sin(_THETA) * np.cos(_PHI), np.sin(_THETA) * np.sin(_PHI), np.cos(_THETA)], -1).reshape(-1, 3)
+
+
+def fit(w: np.ndarray, R: float, n: int, x0) -> np.ndarray:
+    """(a, b) of the paper's objective: the L3 distance between R D and the reference's f cos
+    at the cell centres, the reference's values a histogram of the n walks' exit directions w
+    (M,3) (folded to phi in [0, pi] by symmetry), per unit solid angle."""
+    theta = np.arccos(np.clip(w[:, 2], -1.0, 1.0))
+    phi = np.abs(np.arctan2(w[:, 1], w[:, 0]))
+    h, _, _ = np.histogram2d(theta, phi, bins=[BINS, BINS], range=[[0, 0.5 * np.pi], [0, np.pi]],
+                             weights=1.0 / np.sin(theta))
+    ref = (h * BINS * BINS / (np.pi ** 2 * n)).ravel()
+    x, z = CELLS[:, 0], CELLS[:, 2]
+
+    def l3(p):
+        a, b = p
+        if a <= 1e-4:
+            return 1e30
+        len2 = (a * x + b * z) ** 2 + (a * CELLS[:, 1]) ** 2 + z * z
+        return np.sum(np.abs(R * z * a * a / (np.pi * len2 * len2) - ref) ** 3)
+
+    start = fit_likelihood(w, x0)
+    return minimize(l3, start, method="Nelder-Mead", options=dict(xatol=1e-6, fatol=1e-14, maxiter=4000)).x
+
+
 def tabulate(paths: int, seed: int) -> dict:
     nodes = np.maximum(0.01, np.linspace(0.0, 1.0, sheen.GRID))
     a, b, R = (np.zeros((sheen.GRID, sheen.GRID)) for _ in range(3))
@@ -121,7 +152,7 @@ def tabulate(paths: int, seed: int) -> dict:
             w = walk(mu, nodes[j], paths, rng)
             R[j, i] = len(w) / paths
             if len(w) >= 50:
-                x0 = fit(w, x0)
+                x0 = fit(w, R[j, i], paths, x0)
                 a[j, i], b[j, i] = x0
         print(f"mu {mu:.3f}: R at r=1 {R[-1, i]:.4f}, a {a[-1, i]:.4f}, b {b[-1, i]:.4f}", flush=True)
     return dict(a=a, b=b, R=R)
@@ -129,7 +160,7 @@ def tabulate(paths: int, seed: int) -> dict:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--paths", type=int, default=200_000)
+    ap.add_argument("--paths", type=int, default=400_000)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=str(sheen.TABLE_FILE))
     args = ap.parse_args()
