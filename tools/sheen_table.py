@@ -11,7 +11,8 @@ paper's fitting code. At each node of the 32 x 32 grid over (roughness, mu) (bot
 k / 31), as the paper's) R is the fraction of walks that come out of the top, and (a, b)
 minimise the paper's objective: the L3 distance between R x the LTC density and a histogram
 of the walks' exit directions on 32 x 32 cells of (theta, phi) (Nelder-Mead from the LTC of
-maximum likelihood, warm-started from the next rougher node).
+maximum likelihood, warm-started from the next rougher node), fits that stray from their
+neighbours' median replaced by it (despike).
 """
 from __future__ import annotations
 
@@ -142,6 +143,26 @@ def fit(w: np.ndarray, R: float, n: int, x0) -> np.ndarray:
     return minimize(l3, start, method="Nelder-Mead", options=dict(xatol=1e-6, fatol=1e-14, maxiter=4000)).x
 
 
+def despike(a: np.ndarray, b: np.ndarray, rounds: int = 2, tol_a: float = 0.1, tol_b: float = 0.03):
+    """(a, b) with the fits that stray from the median of their fitted 3 x 3 neighbours (a by
+    more than tol_a of it, b by more than tol_b) replaced by those medians: where the lobe is
+    broad the L3 objective is flat and a histogram's noise moves its minimum far."""
+    a, b = a.copy(), b.copy()
+    fitted = a > 0
+    n = len(a)
+    for _ in range(rounds):
+        ma, mb = np.zeros_like(a), np.zeros_like(b)
+        for j in range(n):
+            for i in range(n):
+                cell = (slice(max(j - 1, 0), j + 2), slice(max(i - 1, 0), i + 2))
+                f = fitted[cell]
+                if f.any():
+                    ma[j, i], mb[j, i] = np.median(a[cell][f]), np.median(b[cell][f])
+        out = fitted & ((np.abs(a - ma) > tol_a * np.abs(ma)) | (np.abs(b - mb) > tol_b))
+        a[out], b[out] = ma[out], mb[out]
+    return a, b
+
+
 def tabulate(paths: int, seed: int) -> dict:
     nodes = np.maximum(0.01, np.linspace(0.0, 1.0, sheen.GRID))
     a, b, R = (np.zeros((sheen.GRID, sheen.GRID)) for _ in range(3))
@@ -155,6 +176,7 @@ def tabulate(paths: int, seed: int) -> dict:
                 x0 = fit(w, R[j, i], paths, x0)
                 a[j, i], b[j, i] = x0
         print(f"mu {mu:.3f}: R at r=1 {R[-1, i]:.4f}, a {a[-1, i]:.4f}, b {b[-1, i]:.4f}", flush=True)
+    a, b = despike(a, b)
     return dict(a=a, b=b, R=R)
 
 
