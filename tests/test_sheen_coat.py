@@ -119,7 +119,7 @@ def test_the_table_albedo_is_the_reference_models(mu, roughness):
     n = 40_000
     R_walk = len(sheen_table.walk(nodes[i], nodes[j], n, np.random.default_rng(17))) / n
     R = sheen.table()["R"][j, i]
-    se = np.sqrt(R * (1 - R) * (1 / n + 1 / 400_000))
+    se = np.sqrt(R * (1 - R) * (1 / n + 1 / 200_000))
     assert abs(R_walk - R) <= 4 * se, (R_walk, R)
 
 

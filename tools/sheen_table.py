@@ -1,6 +1,6 @@
 """Regenerate engine/bsdf/sheen_ltc.npz, the microfiber sheen's LTC table (engine/bsdf/sheen.py).
 
-    ./dev python tools/sheen_table.py [--paths 400000] [--seed 0]
+    ./dev python tools/sheen_table.py [--paths 200000] [--seed 0] [--objective likelihood|l3]
 
 The reference is Zeltner, Burley & Chiang's (2022) volumetric sheen: a slab of unit thickness
 and density 1 of fibre-like SGGX microflakes (fibres along the normal, cross section
@@ -9,10 +9,12 @@ flakes of albedo 1, light entering from the top and walked for at most 16 scatte
 a walk that stops while still inside counts as leaving along its last direction, as in the
 paper's fitting code. At each node of the 32 x 32 grid over (roughness, mu) (both max(0.01,
 k / 31), as the paper's) R is the fraction of walks that come out of the top, and (a, b)
-minimise the paper's objective: the L3 distance between R x the LTC density and a histogram
-of the walks' exit directions on 32 x 32 cells of (theta, phi) (Nelder-Mead from the LTC of
-maximum likelihood, warm-started from the next rougher node), spikes between neighbours
-smoothed (despike).
+the LTC most likely to have produced their exit directions (maximum likelihood, Nelder-Mead,
+warm-started from the next rougher node). --objective l3 fits instead as the paper does (the
+L3 distance between R x the LTC density and a histogram of the exit directions on 32 x 32
+cells of (theta, phi)), spikes between neighbours smoothed (despike): closer to Cycles' own
+table on average but noisier from node to node at these walk counts, and further from
+Cycles' renders (bench/results/closures/coat_sheen.md), so the table is the likelihood fit.
 """
 from __future__ import annotations
 
@@ -160,7 +162,7 @@ def despike(a: np.ndarray, b: np.ndarray, rounds: int = 3, tol_a: float = 0.1, t
     return a, b
 
 
-def tabulate(paths: int, seed: int) -> dict:
+def tabulate(paths: int, seed: int, objective: str = "likelihood") -> dict:
     nodes = np.maximum(0.01, np.linspace(0.0, 1.0, sheen.GRID))
     a, b, R = (np.zeros((sheen.GRID, sheen.GRID)) for _ in range(3))
     rng = np.random.default_rng(seed)
@@ -170,20 +172,22 @@ def tabulate(paths: int, seed: int) -> dict:
             w = walk(mu, nodes[j], paths, rng)
             R[j, i] = len(w) / paths
             if len(w) >= 50:
-                x0 = fit(w, R[j, i], paths, x0)
+                x0 = fit_likelihood(w, x0) if objective == "likelihood" else fit(w, R[j, i], paths, x0)
                 a[j, i], b[j, i] = x0
         print(f"mu {mu:.3f}: R at r=1 {R[-1, i]:.4f}, a {a[-1, i]:.4f}, b {b[-1, i]:.4f}", flush=True)
-    a, b = despike(a, b)
+    if objective == "l3":
+        a, b = despike(a, b)
     return dict(a=a, b=b, R=R)
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--paths", type=int, default=400_000)
+    ap.add_argument("--paths", type=int, default=200_000)
+    ap.add_argument("--objective", choices=("likelihood", "l3"), default="likelihood")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=str(sheen.TABLE_FILE))
     args = ap.parse_args()
-    t = tabulate(args.paths, args.seed)
+    t = tabulate(args.paths, args.seed, args.objective)
     np.savez_compressed(args.out, **{k: v.astype(np.float32) for k, v in t.items()})
     print("wrote", args.out)
 

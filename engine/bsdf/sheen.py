@@ -13,8 +13,8 @@ Cycles' bilinear lookup (kernel/util/lookup_table.h). D is a normalised density 
 sampling draws exactly (a cosine sample mapped by the inverse transform), so the lobe's pdf
 is D itself and its albedo is R. The table (sheen_ltc.npz) is ours: R and the lobe's shape
 come from a random walk in the paper's reference model (a unit slab of fibre-like SGGX
-microflakes, sigma = r^2), (a, b) fitted to the walks' exit directions by the paper's L3
-objective; tools/sheen_table.py regenerates it.
+microflakes, sigma = r^2), (a, b) the LTC most likely to have produced the walks' exit
+directions; tools/sheen_table.py regenerates it.
 
 Ashikhmin velvet (Cycles' closure/bsdf_ashikhmin_velvet.h, from OSL): an inverted-Gaussian
 microfacet distribution D(h) = exp(-cot^2 / s^2) / (pi s^2 sin^4), G = min(1, 2 cos_h
