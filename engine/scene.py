@@ -32,6 +32,7 @@ LOBE_MICROFACET = 2  # GGX reflection, alpha = roughness^2; a perfect mirror whe
 LOBE_DIELECTRIC = 3  # GGX (or smooth) reflection + refraction with the exact Fresnel of ior
 LOBE_TRANSPARENT = 4  # straight pass-through (alpha, Transparent BSDF)
 LOBE_OREN_NAYAR = 5  # rough diffuse: Cycles' energy-preserving Oren-Nayar, sigma = roughness
+LOBE_SHEEN = 6  # Cycles' microfiber sheen (an LTC lobe) or, with DIST_VELVET, the Ashikhmin velvet
 LOBE_TRANSLUCENT = 7  # Lambertian transmission: colour / pi on the far side
 LOBE_TOON = 8  # Cycles' Toon: size, smooth, the component in lobe_distribution (TOON_*)
 LOBE_KINDS = 9
@@ -42,6 +43,7 @@ FRESNEL_NONE = 0  # F = colour (Glossy BSDF)
 FRESNEL_F82 = 1  # conductor: F0 = colour, F82 tint = tint (Principled metallic, Metallic BSDF)
 FRESNEL_DIELECTRIC = 2  # exact Fresnel of ior remapped to F0 = F0(ior) tint .. 1 (Principled)
 FRESNEL_CONDUCTOR = 3  # exact conductor Fresnel of n = colour, k = tint (Metallic BSDF, Physical Conductor)
+FRESNEL_COAT = 4  # Principled coat: exact Fresnel of ior times colour (the coat weight); tint: Coat Tint
 # LOBE_DIELECTRIC: FRESNEL_NONE reflects F x tint (Glass); FRESNEL_DIELECTRIC reflects the exact
 # Fresnel remapped to F0 = F0(ior) tint .. 1, untinted (Principled transmission's Specular Tint).
 
@@ -50,8 +52,9 @@ DIST_GGX = 0  # single-scattering GGX
 DIST_MULTI_GGX = 1  # GGX with Cycles' energy compensation (engine/bsdf/multiscatter.py)
 DIST_BECKMANN = 2  # Beckmann (engine/bsdf/beckmann.py): microfacet lobes only
 DIST_ASHIKHMIN_SHIRLEY = 3  # Ashikhmin-Shirley (engine/bsdf/ashikhmin_shirley.py): microfacet lobes only
+DIST_VELVET = 4  # Sheen BSDF's Ashikhmin velvet (sheen lobes; any other value: microfiber)
 DISTRIBUTIONS = {"GGX": DIST_GGX, "MULTI_GGX": DIST_MULTI_GGX, "BECKMANN": DIST_BECKMANN,
-                 "ASHIKHMIN_SHIRLEY": DIST_ASHIKHMIN_SHIRLEY}
+                 "ASHIKHMIN_SHIRLEY": DIST_ASHIKHMIN_SHIRLEY, "ASHIKHMIN": DIST_VELVET}
 
 # Image texture lookups (Cycles' Image Texture node).
 EXT_REPEAT, EXT_EXTEND, EXT_CLIP, EXT_MIRROR = 0, 1, 2, 3

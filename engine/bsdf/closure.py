@@ -257,8 +257,9 @@ class Closure:
                 self.weight[g.rows[whole]] = 0.0
 
     def _layer(self, first: np.ndarray):
-        """Lobes under a layer keep what the layer leaves them (Cycles' closure layering);
-        first (N,) the points' first lobe ids."""
+        """Lobes under a layer keep what the layer leaves them (Cycles' closure layering), and
+        what the layers above that one left it: a stack (sheen over coat over specular over
+        diffuse) multiplies down; first (N,) the points' first lobe ids."""
         m, lobe = self.m, self.pair_lobe
         rows = np.flatnonzero(m.lobe_layer[lobe] >= 0)
         if len(rows) == 0:
@@ -266,9 +267,22 @@ class Closure:
         point = self.pair_point[rows]
         top = self.pair_offset[point] + (m.lobe_layer[lobe[rows]] - first[point])
         wo = take(self.wo_local, point)
+        left = np.ones((len(rows), 3))
         for g, r in self._split(self.pair_kind[top]):
             r = np.arange(len(rows)) if r is None else r
-            self.weight[rows[r]] *= g.lobe.layer_weight(self._params(g, top[r]), wo[r])[:, None]
+            w = g.lobe.layer_weight(self._params(g, top[r]), wo[r])
+            left[r] = w if w.ndim == 2 else w[:, None]
+        # Up the stack: the layer's own layer, and so on (a chain is at most a material long).
+        below = np.full(len(lobe), -1)
+        below[rows] = np.arange(len(rows))
+        total, up = left.copy(), below[top]
+        for _ in range(len(rows)):
+            has = np.flatnonzero(up >= 0)
+            if not len(has):
+                break
+            total[has] *= left[up[has]]
+            up[has] = below[top[up[has]]]
+        self.weight[rows] *= total
 
     def _albedo_estimate(self) -> np.ndarray:
         """Per-pair albedo estimate (P,3) at wo: drives lobe selection and Russian roulette."""

@@ -25,9 +25,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..scene import (DISTRIBUTIONS, FRESNEL_CONDUCTOR, FRESNEL_DIELECTRIC, FRESNEL_F82, FRESNEL_NONE,
-                     LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG, LOBE_TOON,
-                     LOBE_TRANSLUCENT, LOBE_TRANSPARENT, TOON_DIFFUSE, TOON_GLOSSY, part_digest)
+from ..scene import (DISTRIBUTIONS, FRESNEL_COAT, FRESNEL_CONDUCTOR, FRESNEL_DIELECTRIC, FRESNEL_F82,
+                     FRESNEL_NONE, LOBE_DIELECTRIC, LOBE_DIFFUSE, LOBE_MICROFACET, LOBE_OREN_NAYAR, LOBE_PHONG,
+                     LOBE_SHEEN, LOBE_TOON, LOBE_TRANSLUCENT, LOBE_TRANSPARENT, TOON_DIFFUSE, TOON_GLOSSY,
+                     part_digest)
 from . import light_path
 from .closures import closures
 from .graph import Graph
@@ -37,10 +38,10 @@ from .state import ShadingState
 
 LOBE_OF = {"diffuse": LOBE_DIFFUSE, "phong": LOBE_PHONG, "microfacet": LOBE_MICROFACET,
            "dielectric": LOBE_DIELECTRIC, "transparent": LOBE_TRANSPARENT, "oren_nayar": LOBE_OREN_NAYAR,
-           "translucent": LOBE_TRANSLUCENT, "toon": LOBE_TOON}
+           "sheen": LOBE_SHEEN, "translucent": LOBE_TRANSLUCENT, "toon": LOBE_TOON}
 TOON_COMPONENTS = {"DIFFUSE": TOON_DIFFUSE, "GLOSSY": TOON_GLOSSY}
 FRESNEL_OF = {"none": FRESNEL_NONE, "f82": FRESNEL_F82, "dielectric": FRESNEL_DIELECTRIC,
-              "conductor": FRESNEL_CONDUCTOR}
+              "conductor": FRESNEL_CONDUCTOR, "coat": FRESNEL_COAT}
 # Lobe inputs a closure may carry, and whether each is a colour or vector (3 components).
 # aspect and tangent (anisotropy) are per point only: the shader nodes give them the point axis.
 PARAMS = {"color": True, "tint": True, "roughness": False, "ior": False, "exponent": False,

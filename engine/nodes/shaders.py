@@ -4,13 +4,14 @@ closures from them (svm/closure.h), and what Ember approximates.
 A BSDF node makes closures whose kind is a lobe's ("diffuse", "microfacet", ...), whose weight
 is its mixture weight and whose params are the lobe's inputs, per point or constant:
   color, tint (3), roughness (Blender's, alpha = roughness^2; Oren-Nayar's sigma), ior, exponent
-  (Phong), fresnel ("none", "f82", "dielectric", "conductor": the microfacet lobe's model; on
-  glass "dielectric" makes tint the Fresnel's F0 tint), distribution ("GGX", "MULTI_GGX",
-  "BECKMANN", "ASHIKHMIN_SHIRLEY": the node's microfacet distribution), normal (3, unnormalised
-  world direction where the node's Normal is linked), layer (the tag of the closure this one
-  lies under: it keeps 1 - that lobe's albedo, Cycles' closure layering), aspect and tangent
-  (anisotropy, per point: alpha_x = alpha / aspect along the world direction tangent),
-  film_thickness and film_ior (a thin film on the Fresnel), refract_only (Refraction BSDF).
+  (Phong), fresnel ("none", "f82", "dielectric", "conductor", "coat": the microfacet lobe's
+  model; on glass "dielectric" makes tint the Fresnel's F0 tint), distribution ("GGX",
+  "MULTI_GGX", "BECKMANN", "ASHIKHMIN_SHIRLEY": the node's microfacet distribution; "ASHIKHMIN":
+  the sheen lobe's velvet), normal (3, unnormalised world direction where the node's Normal is
+  linked), layer (the tag of the closure this one lies under: it keeps 1 - that lobe's albedo,
+  and what that lobe keeps: Cycles' closure layering), aspect and tangent (anisotropy, per
+  point: alpha_x = alpha / aspect along the world direction tangent), film_thickness and
+  film_ior (a thin film on the Fresnel), refract_only (Refraction BSDF).
 Every closure has a tag unique within its node (the node's label and its part), so layers
 survive Mix and Add Shader. A closure of constant weight at most CUTOFF is left out, as Cycles
 leaves out closures lighter than CLOSURE_WEIGHT_CUTOFF.
@@ -254,25 +255,34 @@ def holdout(node, inputs, state):
     return {"Holdout": (Closure("holdout", ONES, {}, node.label),)}
 
 
-_PRINCIPLED_IGNORED = (("coat", "Coat Weight", 0.0), ("sheen", "Sheen Weight", 0.0),
-                       ("subsurface", "Subsurface Weight", 0.0))
+_PRINCIPLED_IGNORED = (("subsurface", "Subsurface Weight", 0.0),)
 
 
 def _principled_notes(node) -> list:
     notes = _distribution_notes(node)
     notes += [f"{label} ignored" for label, name, default in _PRINCIPLED_IGNORED if _linked_or_set(node, name, default)]
+    layered = _linked_or_set(node, "Coat Weight", 0.0) or _linked_or_set(node, "Sheen Weight", 0.0)
+    if layered and node.prop("phong", False):
+        notes.append("coat and sheen ignored with Phong")
+    if _linked_or_set(node, "Coat Weight", 0.0) and node.input("Coat Normal") is not None \
+            and node.input("Coat Normal").link is not None:
+        notes.append("Coat Normal ignored (the coat shades with Normal)")
+    if layered and _linked_or_set(node, "Emission Strength", 0.0):
+        notes.append("emission not dimmed by the coat and sheen")
     return notes
 
 
 @node("ShaderNodeBsdfPrincipled", "Shader", notes=_principled_notes, reads=_anisotropy_reads)
 def principled(node, inputs, state):
     """Cycles' Principled BSDF (svm/closure.h), top layer first: transparency (1 - Alpha);
-    then, of what Alpha keeps, metallic (an F82 conductor: F0 = Base Color, F82 tint = Specular
-    Tint), transmission (glass whose refraction is tinted sqrt(Base Color), its Fresnel's F0
-    tinted by Specular Tint) of what metallic leaves, and a
-    dielectric specular layer (Fresnel of the IOR rescaled by Specular IOR Level, tinted by
-    Specular Tint) over a diffuse base of the rest; Emission Color x Strength. Anisotropy on
-    the metal and the specular (Cycles' glass is isotropic), a thin film on all three."""
+    then, of what Alpha keeps, sheen and coat (_sheen_and_coat) and under them metallic (an
+    F82 conductor: F0 = Base Color, F82 tint = Specular Tint), transmission (glass whose
+    refraction is tinted sqrt(Base Color), its Fresnel's F0 tinted by Specular Tint) of what
+    metallic leaves, and a dielectric specular layer (Fresnel of the IOR rescaled by Specular
+    IOR Level, tinted by Specular Tint) over a diffuse base of the rest; Emission Color x
+    Strength. Anisotropy on the metal and the specular (Cycles' glass is isotropic), a thin
+    film on all three. Cycles 5.0 leaves the base's IOR as it is under a coat (svm and osl
+    alike), and so does Ember."""
     label = node.label
     base = triple(inputs["Base Color"])
     rough = scalar(inputs["Roughness"])
@@ -303,21 +313,56 @@ def principled(node, inputs, state):
         out += _closure("dielectric", w * column((1 - metal) * transmission), label + "/transmission",
                         color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=ONES, roughness=rough, ior=ior, **normal)
         return {"BSDF": out + emission}
+    layers = _sheen_and_coat(inputs, w, label, normal)
+    out += layers
+    under = {"layer": layers[-1].tag} if layers else {}
     out += _closure("microfacet", w * column(metal), label + "/metallic", fresnel="f82", color=np.clip(base, 0, 1),
-                    tint=np.minimum(spec_tint, 1.0), roughness=rough, distribution=dist, **normal, **film, **aniso)
+                    tint=np.minimum(spec_tint, 1.0), roughness=rough, distribution=dist, **under, **normal, **film,
+                    **aniso)
     w = w * column(1.0 - metal)
     out += _closure("dielectric", w * column(transmission), label + "/transmission",
                     color=np.sqrt(np.clip(base, 0.0, 1.0)), tint=spec_tint, fresnel="dielectric", roughness=rough,
-                    ior=ior, distribution=dist, **normal, **film)
+                    ior=ior, distribution=dist, **under, **normal, **film)
     w = w * column(1.0 - transmission)
     top = ()
     if np.ndim(eta) or eta != 1.0 or film:
         top = _closure("microfacet", w, label + "/specular", fresnel="dielectric", tint=spec_tint,
-                       roughness=rough, ior=eta, distribution=dist, **normal, **film, **aniso)
-    layer = {"layer": top[0].tag} if top else {}
+                       roughness=rough, ior=eta, distribution=dist, **under, **normal, **film, **aniso)
+    layer = {"layer": top[0].tag} if top else under
     out += top + _diffuse(w, label + "/base", base, scalar(inputs["Diffuse Roughness"]) if "Diffuse Roughness" in inputs
                           else 0.0, **layer, **normal)
     return {"BSDF": out + emission}
+
+
+def _sheen_and_coat(inputs, w, label: str, normal: dict) -> tuple:
+    """The Principled BSDF's top layers, top first (svm/closure.h): a microfiber sheen of colour
+    Sheen Weight x Sheen Tint, then a coat (Multiscatter GGX, the exact dielectric Fresnel of
+    Coat IOR >= 1 times Coat Weight), each lying under the one above it; the lobes under them
+    keep what they leave (the coat's Coat Tint included). Both have the closure weight w: the
+    Sheen and Coat Weights are in their colours, where their albedos (and so the layering) see
+    them, as in Cycles' closure weights."""
+    sheen_w = np.maximum(scalar(inputs["Sheen Weight"]), 0.0)
+    coat_w = np.maximum(scalar(inputs["Coat Weight"]), 0.0)
+    out = ()
+    if np.ndim(sheen_w) or sheen_w > CUTOFF:
+        out += _closure("sheen", w, label + "/sheen", color=column(sheen_w) * np.maximum(triple(inputs["Sheen Tint"]), 0.0),
+                        roughness=np.clip(scalar(inputs["Sheen Roughness"]), 0.0, 1.0), **normal)
+    if np.ndim(coat_w) or coat_w > CUTOFF:
+        under = {"layer": out[-1].tag} if out else {}
+        out += _closure("microfacet", w, label + "/coat", fresnel="coat", color=column(coat_w) * ONES,
+                        tint=np.maximum(triple(inputs["Coat Tint"]), 0.0),
+                        roughness=np.clip(scalar(inputs["Coat Roughness"]), 0.0, 1.0),
+                        ior=np.maximum(scalar(inputs["Coat IOR"]), 1.0), distribution="MULTI_GGX", **under, **normal)
+    return out
+
+
+@node("ShaderNodeBsdfSheen", "Shader")
+def sheen(node, inputs, state):
+    """Cycles' Sheen BSDF: microfiber (an LTC lobe scaled by its albedo) or Ashikhmin velvet."""
+    velvet = {"distribution": "ASHIKHMIN"} if node.prop("distribution", "MICROFIBER") == "ASHIKHMIN" else {}
+    return {"BSDF": _closure("sheen", triple(inputs["Color"]), node.label, color=ONES,
+                             roughness=np.clip(scalar(inputs["Roughness"]), 0.0, 1.0), **velvet,
+                             **_normal(node, inputs))}
 
 
 @node("ShaderNodeBsdfTranslucent", "Shader")
@@ -335,7 +380,7 @@ def toon(node, inputs, state):
 
 
 # Shaders Ember does not build yet: the diffuse of their Color (grey without one), with a note.
-_APPROXIMATED = ("ShaderNodeBsdfSheen", "ShaderNodeBsdfHair",
+_APPROXIMATED = ("ShaderNodeBsdfHair",
                  "ShaderNodeBsdfHairPrincipled", "ShaderNodeSubsurfaceScattering", "ShaderNodeBsdfRayPortal",
                  "ShaderNodeEeveeSpecular")
 
@@ -349,5 +394,5 @@ def _as_diffuse(node, inputs, state):
 APPROXIMATED = tuple(node(kind, "Shader", notes=lambda node: ["rendered as diffuse"])(_as_diffuse)
                      for kind in _APPROXIMATED)
 
-NODES = (diffuse, glossy, metallic, glass, refraction, transparent, holdout, principled, translucent,
+NODES = (diffuse, glossy, metallic, glass, refraction, transparent, holdout, principled, sheen, translucent,
          toon) + APPROXIMATED

@@ -10,6 +10,7 @@ module here and one entry in LOBES; phase functions (volumes) have the same inte
     3     Dielectric    glossy + transmit  glossy / transmission            smooth or ior ~ 1
     4     Transparent   none               transmission                     always
     5     OrenNayar     diffuse            diffuse                          never
+    6     Sheen         diffuse            diffuse (velvet: glossy)         never
     7     Translucent   diffuse            diffuse                          never
     8     Toon          per component      per component (Diffuse, Glossy)  never
 """
@@ -25,19 +26,13 @@ from .henyey_greenstein import HenyeyGreenstein
 from .microfacet import Microfacet
 from .oren_nayar import OrenNayar
 from .phong import Phong
+from .sheen import Sheen
 from .toon import Toon
 from .translucent import Translucent
 from .transparent import Transparent
 
-
-class _SheenSlot(Diffuse):
-    """Holds kind 6 (LOBE_SHEEN, built on another branch) until that lobe merges; nothing
-    makes a lobe of this kind here."""
-    kind = 6
-
-
 LOBES: tuple[SurfaceLobe, ...] = (Diffuse(), Phong(), Microfacet(), Dielectric(), Transparent(), OrenNayar(),
-                                  _SheenSlot(), Translucent(), Toon())
+                                  Sheen(), Translucent(), Toon())
 assert [lobe.kind for lobe in LOBES] == list(range(LOBE_KINDS)), "LOBES is indexed by kind id"
 PHASE_FUNCTIONS: tuple[Lobe, ...] = (HenyeyGreenstein(),)
 

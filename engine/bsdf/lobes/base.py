@@ -171,8 +171,8 @@ class SurfaceLobe(Lobe):
         return None
 
     def layer_weight(self, p: SurfaceParams, wo: np.ndarray) -> np.ndarray:
-        """(K,) weight it leaves to the lobe under it (Cycles' closure_layering_weight:
-        1 - max_rgb of its albedo)."""
+        """(K,) or (K,3) weight it leaves to the lobes under it (Cycles'
+        closure_layering_weight: 1 - max_rgb of its albedo)."""
         return np.clip(1.0 - max3(self.albedo(p, wo)), 0.0, 1.0)
 
     def albedo_parts(self, p: SurfaceParams, wo: np.ndarray, weight: np.ndarray, estimate: np.ndarray):

@@ -2,8 +2,10 @@
 F D G2 / (4 cos_o cos_i), a perfect mirror when smooth (formulas: engine/bsdf/microfacet.py).
 
 Its Fresnel colour F per FRESNEL_* model (Cycles' svm/closure.h): none (F = colour, Glossy
-BSDF), F82-tint conductor (f0 = colour, edge tint = tint; Principled metallic) and the exact
-dielectric Fresnel of ior remapped to F0(ior) tint .. 1 (Principled specular).
+BSDF), F82-tint conductor (f0 = colour, edge tint = tint; Principled metallic), the exact
+dielectric Fresnel of ior remapped to F0(ior) tint .. 1 (Principled specular) and the
+Principled coat: the exact dielectric Fresnel of ior times the colour (the coat weight, which
+Cycles' coat closure carries in its weight), Coat Tint (tint) colouring what lies under it.
 
 Rows of DIST_MULTI_GGX (Blender's default distribution) are scaled by Cycles' energy
 compensation (engine/bsdf/multiscatter.py) with the mean Fresnel Fss of their model, the factor
@@ -27,8 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_CONDUCTOR, FRESNEL_DIELECTRIC,
-                      FRESNEL_F82, LOBE_MICROFACET, RAY_GLOSSY)
+from ...scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_MULTI_GGX, FRESNEL_COAT, FRESNEL_CONDUCTOR,
+                      FRESNEL_DIELECTRIC, FRESNEL_F82, LOBE_MICROFACET, RAY_GLOSSY)
 from ...vec import dot, max3, normalize
 from .. import anisotropic, ashikhmin_shirley, beckmann, fresnel, layering, microfacet, multiscatter, thin_film
 from . import inputs
@@ -92,6 +94,9 @@ def fresnel_color(p: MicrofacetParams, cos: np.ndarray) -> np.ndarray:
     r = np.flatnonzero(p.fresnel == FRESNEL_CONDUCTOR)
     if len(r):
         F[r] = fresnel.conductor(cos[r], p.color[r], p.tint[r])
+    r = np.flatnonzero(p.fresnel == FRESNEL_COAT)
+    if len(r):
+        F[r] = p.color[r] * fresnel.dielectric(cos[r], p.ior[r])[:, None]
     if film.any():
         _iridescent(p, cos, np.flatnonzero(film), F)
     return F
@@ -131,6 +136,9 @@ def mean_fresnel(p: MicrofacetParams) -> np.ndarray:
     r = np.flatnonzero(p.fresnel == FRESNEL_CONDUCTOR)
     if len(r):
         Fss[r] = fresnel.conductor_fss(p.color[r], p.tint[r])
+    r = np.flatnonzero(p.fresnel == FRESNEL_COAT)
+    if len(r):  # the weight (colour) is no part of the Fresnel
+        Fss[r] = multiscatter.fss_dielectric(p.ior[r])[:, None]
     return Fss
 
 
@@ -169,6 +177,26 @@ def specular_layer_weight(p, wo: np.ndarray, darkening=None) -> np.ndarray:
     the energy compensation's darkening (K,3) where given."""
     f0 = fresnel.f0_from_ior(p.ior)[:, None] * p.tint
     return layering.base_weight(f0, p.roughness, wo[:, 2], p.ior, darkening)
+
+
+def coat_layer_weight(p, wo: np.ndarray, darkening=None) -> np.ndarray:
+    """(K,3) weight a coat leaves to the lobes under it (Cycles' svm/closure.h Principled):
+    1 - its albedo estimate w mix(F0(ior), 1, s) (the layering), times mix(1, tint^(1 / cos_t),
+    w), Coat Tint absorbed along the refracted ray's path through a coat of unit thickness
+    (cos_t the cosine of wo refracted into the coat); w the coat weight (the colour)."""
+    w = p.color[:, 0]
+    cos_o = np.clip(wo[:, 2], 0.0, 1.0)
+    f0 = np.repeat(fresnel.f0_from_ior(p.ior)[:, None], 3, axis=1)
+    s = layering.schlick_factor(p.roughness, cos_o, p.ior)[:, None]
+    albedo = w[:, None] * (f0 * (1.0 - s) + s) * (1.0 if darkening is None else darkening)
+    out = np.repeat(np.clip(1.0 - albedo.max(axis=1), 0.0, 1.0)[:, None], 3, axis=1)
+    tinted = np.flatnonzero(np.any(p.tint != 1.0, axis=1))
+    if len(tinted):
+        eta = p.ior[tinted]
+        cos_t = np.sqrt(np.maximum(1.0 - (1.0 - cos_o[tinted] ** 2) / (eta * eta), 1e-12))
+        absorbed = np.maximum(p.tint[tinted], 0.0) ** (1.0 / cos_t)[:, None]
+        out[tinted] *= 1.0 + w[tinted, None] * (absorbed - 1.0)
+    return out
 
 
 def blur(p, min_alpha: np.ndarray, is_delta) -> None:
@@ -293,6 +321,9 @@ class Microfacet(SurfaceLobe):
         if len(r):
             darkening = np.ones((len(p), 3))
             darkening[r] = dark
+        coat = p.fresnel == FRESNEL_COAT
+        if coat.all():
+            return coat_layer_weight(p, wo, darkening)
         w = specular_layer_weight(p, wo, darkening)
         f = np.flatnonzero(p.film > thin_film.CUTOFF)
         if len(f):  # Cycles' estimate: the iridescent Fresnel at wo
@@ -300,6 +331,10 @@ class Microfacet(SurfaceLobe):
             if darkening is not None:
                 a *= darkening[f]
             w[f] = np.clip(1.0 - max3(a), 0.0, 1.0)
+        c = np.flatnonzero(coat)
+        if len(c):
+            w = np.repeat(w[:, None], 3, axis=1)
+            w[c] = coat_layer_weight(p.take(c), wo[c], None if darkening is None else darkening[c])
         return w
 
     def stores_photons(self, m, lobe, min_roughness):
@@ -312,5 +347,7 @@ class Microfacet(SurfaceLobe):
             color = color.copy()
             color[conductor] = fresnel.conductor(np.ones(len(n)), n, k)
         a = np.maximum(mean_albedo(m, lobe, color), 0.0)
+        # A coat reflects its weight (the colour) times its mean Fresnel.
+        a = np.where(m.lobe_fresnel[lobe] == FRESNEL_COAT, a * multiscatter.fss_dielectric(m.lobe_ior[lobe]), a)
         sharp = m.lobe_roughness[lobe] < min_roughness
         return {"glossy": np.where(sharp, 0.0, a), "specular": np.where(sharp, a, 0.0)}
