@@ -30,7 +30,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import sampling, textures
-from ..scene import LOBE_TRANSPARENT, Scene
+from ..scene import Scene
 from ..vec import dot, gatherer, max3, normalize, scale, take
 from .lobes import LOBES, NEEDS_SIDE, RAYS, REFLECTION_CLASS, STRAIGHT, TRANSMISSION_CLASS, inputs
 from .lobes.base import (CLASS_DIFFUSE, LABEL_DIFFUSE, LABEL_GLOSSY, LABEL_TRANSMIT, LABEL_TRANSPARENT, Params,
@@ -380,8 +380,9 @@ class Closure:
 
     def transparency(self) -> np.ndarray:
         """(N,3) the summed weight of the transparent lobes at each point: what a shadow ray
-        keeps passing it (Cycles' surface_shader_transparency)."""
-        t = np.where((self.pair_kind == LOBE_TRANSPARENT)[:, None], self.pair_estimate, 0.0)
+        keeps passing it (Cycles' surface_shader_transparency): the lobes that pass light
+        straight through."""
+        t = np.where(STRAIGHT[self.pair_kind][:, None], self.pair_estimate, 0.0)
         return t if self.single else _sum_by(self.pair_point, t, self.n)
 
     # --- render passes: the closure split by lobe class (diffuse, glossy, transmission) -------
