@@ -63,9 +63,22 @@ class BSDFSample:
     label: np.ndarray = None  # (N,) int8 LABEL_* of each sample
 
 
+# Directions closer to the shading plane than this cosine lie on it: there a microfacet lobe's
+# f cos_i depends on cos_i / (cos_i + cos_o), which rounding decides when both are tiny, so a
+# direction and its round trip through world space would weigh differently.
+GRAZING = 1e-9
+
+
+def _on_plane(local: np.ndarray) -> np.ndarray:
+    """local (K,3) with z set to 0 where |z| < GRAZING (in place; returned)."""
+    z = local[:, 2]
+    z[np.abs(z) < GRAZING] = 0.0
+    return local
+
+
 def _to_local(v: np.ndarray, t: np.ndarray, b: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """World vectors v (K,3) in the frames (t, b, n) (K,3 each)."""
-    return np.stack([dot(v, t), dot(v, b), dot(v, n)], axis=1)
+    """World vectors v (K,3) in the frames (t, b, n) (K,3 each), grazing ones on the plane."""
+    return _on_plane(np.stack([dot(v, t), dot(v, b), dot(v, n)], axis=1))
 
 
 def _mean3(a: np.ndarray) -> np.ndarray:
@@ -499,6 +512,7 @@ class Closure:
         # of the microfacet) is dropped, not re-weighted by the other lobes: the mixture pdf
         # counts only the samples each lobe keeps (seed 000: no redraw, zero contribution).
         wi_local, lobe_weight, lobe_pdf, eta2 = self._sample_lobes(pick, wo, at(u), u_branch, live, label)
+        wi_local = _on_plane(wi_local)
         is_delta = self.pair_delta[pick]
 
         if everyone:
