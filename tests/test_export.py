@@ -307,8 +307,10 @@ def test_material_mapping_and_fallback_warnings():
     np.testing.assert_allclose(mats.base_color[idx["Red"]], [1, 0, 0])
     assert mats.kind[idx["Lamp"]] == S.MAT_EMISSION_ONLY
     np.testing.assert_allclose(mats.emission[idx["Lamp"]], [4.0, 2.0, 1.0])
-    assert mats.kind[idx["default"]] == S.MAT_DIFFUSE
-    np.testing.assert_allclose(mats.base_color[idx["default"]], [0.8, 0.8, 0.8])
+    # No material: Cycles' default surface, a default Principled (specular over a 0.8 base).
+    default_lobes = mats.lobe_kind[mats.lobe_material == idx["default"]]
+    assert mats.kind[idx["default"]] == S.MAT_NODES and default_lobes.tolist() == [S.LOBE_MICROFACET, S.LOBE_DIFFUSE]
+    np.testing.assert_allclose(mats.base_color[idx["default"]], [0.8, 0.8, 0.8], atol=1e-6)
     # Glossy BSDF: one GGX lobe (tests/test_export_material.py covers the node mapping).
     glossy_lobes = mats.lobe_kind[mats.lobe_material == idx["Glossy"]]
     assert mats.kind[idx["Glossy"]] == S.MAT_NODES and glossy_lobes.tolist() == [S.LOBE_MICROFACET]

@@ -41,8 +41,9 @@ def test_sampling_properties_are_cycles_like(scene):
     assert (e.use_adaptive_sampling, e.adaptive_threshold, e.adaptive_min_samples, e.use_animated_seed) == \
         (False, pytest.approx(0.01), 0, False)
     props = type(e).bl_rna.properties
-    assert (props["adaptive_threshold"].hard_min, props["adaptive_threshold"].hard_max) == (0.0, 1.0)
-    assert (props["adaptive_min_samples"].hard_min, props["adaptive_min_samples"].hard_max) == (0, 4096)
+    # The declared ranges are the sliders' (soft) ones: a value outside is refused at render, never clamped.
+    assert (props["adaptive_threshold"].soft_min, props["adaptive_threshold"].soft_max) == (pytest.approx(0.001), 1.0)
+    assert (props["adaptive_min_samples"].soft_min, props["adaptive_min_samples"].soft_max) == (0, 4096)
     e.use_adaptive_sampling, e.adaptive_threshold, e.adaptive_min_samples = True, 0.05, 32
     s = export_settings(scene)
     assert (s.adaptive, s.adaptive_threshold, s.adaptive_min_samples) == (True, pytest.approx(0.05), 32)
