@@ -553,12 +553,26 @@ def material_row(mat, textures: _Textures, warn, phong: bool = False) -> dict:
         return dict(kind=MAT_DIFFUSE, base_color=GREY, emission=(0, 0, 0), name=name)
     surface = follow_link(out.inputs["Surface"])
     volume_socket = out.inputs.get("Volume")
-    if volume_socket is not None and follow_link(volume_socket) is not None:
-        _group(warn, "Volume shaders are not supported and are ignored (a material with only a "
-                     "volume renders as a transparent surface)", name)
-        if surface is None:  # Cycles: a volume-only material has a transparent boundary
-            return dict(kind=MAT_NODES, base_color=(0.0, 0.0, 0.0), emission=(0, 0, 0), name=name,
-                        lobes=[dict(kind=LOBE_TRANSPARENT, weight=(1.0, 1.0, 1.0), color=(1.0, 1.0, 1.0))])
+    if volume_socket is None or follow_link(volume_socket) is None:
+        return _surface_row(mat, out, surface, textures, warn, phong)
+    if surface is None:  # Cycles: a volume-only material has a transparent boundary
+        row = dict(kind=MAT_NODES, base_color=(0.0, 0.0, 0.0), emission=(0, 0, 0), name=name,
+                   lobes=[dict(kind=LOBE_TRANSPARENT, weight=(1.0, 1.0, 1.0), color=(1.0, 1.0, 1.0))])
+    else:
+        row = _surface_row(mat, out, surface, textures, warn, phong)
+    from .export_volume import medium_of  # it reads this module's socket helpers
+    notes = []
+    medium = medium_of(volume_socket, notes.append)
+    if notes:
+        warn(f"Material '{name}': volume approximated " + "; ".join(notes) + ".")
+    if medium is not None:
+        row["volume"] = medium.as_row()
+    return row
+
+
+def _surface_row(mat, out, surface, textures: _Textures, warn, phong: bool) -> dict:
+    """The Materials row of the material's Surface shader (see material_row)."""
+    name = mat.name
     conv = _Converter(mat, textures, phong)
     conv.shader(surface, np.ones(3))
     displaced = follow_link(out.inputs["Displacement"]) is not None

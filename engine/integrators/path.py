@@ -38,8 +38,10 @@ from ..rng import Sampler
 from ..scene import RAY_CAMERA, RAY_SHADOW, Scene
 from .. import passes as passes_mod
 from ..visibility import RayVisibility
+from ..volumes import Media
 from .base import Integrator, Stage
 from .light_passes import LightTally
+from .media import MediumSteps, after_crossing
 from .path_options import CAMERA_PATHS, Clamp, ClosureOptions, Gather, LightPaths, Strategy
 from .path_state import PathState, rows_of
 from .surface import emitted, flat_frame_rows, flat_frames, flat_normals, shading_frame, towards
@@ -67,8 +69,18 @@ def _accumulate(L: np.ndarray, rows: np.ndarray, c: np.ndarray) -> None:
         L[k][rows] += c[:, k]
 
 
+def _light_group(depth):
+    return 1 + _GROUPS * depth + _LIGHT
+
+
+def _bsdf_group(depth):
+    return 1 + _GROUPS * depth + _BSDF
+
+
 class PathTracer:
-    def __init__(self, scene: Scene, accel: Accel, lights: LightSet):
+    def __init__(self, scene: Scene, accel: Accel, lights: LightSet, media: bool = False):
+        """media: render the materials' volumes (the path integrator's camera paths; other
+        integrators leave them out, with a warning from validation)."""
         self.scene, self.accel, self.lights = scene, accel, lights
         self.mesh, self.materials = scene.mesh, scene.materials
         emissive = np.any(scene.materials.emission != 0, axis=1)  # per material; negative emission too
@@ -98,6 +110,8 @@ class PathTracer:
         self.shader_rays = None
         if "ray_queries" in reads:
             self.shader_rays = SceneRays(self.visibility.views.get(RAY_SHADOW, accel), accel, scene.mesh)
+        table = Media.of(scene.materials) if media else None
+        self.media = None if table is None else MediumSteps(self, table, _light_group, _bsdf_group)
 
     def render(self, sampler, px: np.ndarray, py: np.ndarray, stop=None, tally=None) -> np.ndarray:
         """Radiance estimates (N,3), one path per pixel (px, py). Raises Cancelled if stop is set.
@@ -126,7 +140,7 @@ class PathTracer:
         L = np.zeros((3, len(paths) if refill is None else refill.n))  # channel-major: see _accumulate
         max_depth = self.light_paths.max_depth if gather.max_depth is None else gather.max_depth
         rays = self.light_paths.rays_at_most(max_depth)
-        paths = self._start(paths, gather, max_depth, per_path=refill is not None)
+        paths = self._start(paths, gather, max_depth, per_path=refill is not None or self.media is not None)
         t_first = gather.t_first  # the first rays' only
         while True:
             if stop is not None and stop.is_set():
@@ -136,10 +150,13 @@ class PathTracer:
                 break
             hit = paths.intersect(self.visibility, paths.bounces.ray, t_first)  # one Embree call
             t_first = None
+            scattered = None  # paths that collide in a medium, on their next rays
+            if self.media is not None:
+                paths, hit, scattered = self.media.propagate(L, sampler, paths, hit)
             self._emission(L, paths, hit, gather, tally, sampler)  # found by the rays, weighted by MIS
             paths = paths.arrive(hit, np.flatnonzero(hit.prim >= 0), self.mesh.material, self.needs_bary)
             paths = self._terminate(paths)  # bounce limits, holdouts
-            if len(paths) == 0 and not (refill is not None and refill.left > 0):
+            if len(paths) == 0 and not (refill is not None and refill.left > 0) and scattered is None:
                 break
             bsdf = self._closure(paths, tally, sampler)
             q = self._survival(paths, bsdf)  # Russian roulette's, fixed before sampling
@@ -147,6 +164,8 @@ class PathTracer:
                 paths.specular &= ~gather.caustic_ends[paths.mat]
             self._next_event(L, sampler, paths, bsdf, q, tally)  # one light sample
             paths = self._scatter(sampler, paths, bsdf, q, tally)  # one BSDF sample goes on
+            if scattered is not None:
+                paths = paths.join(scattered)
             if np.ndim(paths.depth) == 0:  # a path traces at most `rays` rays
                 if paths.depth >= rays:
                     break
@@ -165,6 +184,8 @@ class PathTracer:
         paths.bounces = self.light_paths.start(n, max_depth, per_path)
         if self.track:
             self._track(paths, gather)
+        if self.media is not None:
+            self.media.start(paths)
         return paths
 
     def _track(self, paths: PathState, gather: Gather) -> None:
@@ -329,11 +350,20 @@ class PathTracer:
             return
         rows = active[test]
         n_off = take(paths.ng, rows) if reflects else towards(take(paths.ng, rows), take(ls.wi, test))
-        blocked = self.visibility.occluded(offset_origin(take(paths.p, rows), n_off), take(ls.target, test),
-                                           paths.prim[rows], ls.target_prim[test])
-        lit = np.flatnonzero(~blocked)
+        if self.media is None:
+            blocked = self.visibility.occluded(offset_origin(take(paths.p, rows), n_off), take(ls.target, test),
+                                               paths.prim[rows], ls.target_prim[test])
+            lit = np.flatnonzero(~blocked)
+            c = take(contrib, test[lit])
+        else:  # through media: transmittance, and the medium on the light's side of the surface
+            medium = after_crossing(self.media.media, paths.medium[rows], paths.mat[rows],
+                                    take(self.media.ng_raw, paths.prim[rows]), -take(paths.d, rows), take(ls.wi, test))
+            T = self.media.transmittance(take(paths.p, rows), n_off, take(ls.target, test), paths.prim[rows],
+                                         ls.target_prim[test], medium)
+            lit = np.flatnonzero(np.any(T != 0, axis=1))
+            c = take(contrib, test[lit]) * T[lit]
         rows = rows[lit]
-        c = self._clamp(take(contrib, test[lit]), b.total == 0, rows)
+        c = self._clamp(c, b.total == 0, rows)
         _accumulate(L, paths.idx[rows], c)
         if tally:
             f_cls = bsdf.eval_by_class(take(ls.wi, test[lit]), rows) if paths.depth == 0 else None
@@ -358,7 +388,13 @@ class PathTracer:
         beta = paths.beta * scale(bs.weight, np.divide(1.0, q, out=np.zeros(m), where=survive))
         survive &= max3(beta) > 0
         keep = np.flatnonzero(survive)
-        paths = paths.leave(keep, take(bs.wi, keep), take(beta, keep), reflects)
+        wi = take(bs.wi, keep)
+        if self.media is not None:
+            medium = after_crossing(self.media.media, paths.medium[keep], paths.mat[keep],
+                                    take(self.media.ng_raw, paths.prim[keep]), -take(paths.d, keep), wi)
+        paths = paths.leave(keep, wi, take(beta, keep), reflects)
+        if self.media is not None:
+            paths.medium = medium
         paths.bounces = paths.bounces.count(bs, keep, self.light_paths.per_label)
         # Strategy switches: pdf_prev 0 makes emission found after a non-delta bounce weigh 0
         # ("light" alone); no_mis makes it weigh 1 (after delta bounces, or "bsdf" alone).
@@ -428,8 +464,10 @@ class PathIntegrator(Integrator):
 
     def build(self, ctx) -> None:
         super().build(ctx)
-        self.tracer = PathTracer(ctx.scene, ctx.accel, ctx.lights)
         self.tallied = self.light_passes_of(ctx.scene.settings)
+        # Light passes count per bounce of a batch at one depth: volumes are left out there
+        # (validation.volume_warnings says so).
+        self.tracer = PathTracer(ctx.scene, ctx.accel, ctx.lights, media=not self.tallied)
 
     def run(self, stage: Stage, item: int, stop=None) -> np.ndarray:
         layout, s = self.layout, self.scene.settings

@@ -56,16 +56,18 @@ class PathState:
     pdf_prev (N,): q p_b of the bounce that produced the ray (MIS weights of the emission
              it finds); no_mis (N,) bool: that emission counts with weight 1
     specular (N,) bool: every vertex so far was specular (caustic paths; None: not kept)
+    medium   (N,) int64: the material whose medium the path is in (-1 none), volume_bounces
+             (N,) its scattering events in media (both None without media: integrators/media.py)
     depth    bounces so far (rays traced - 1): an int, or (N,) int64 with regeneration
     bounces  Bounces (the light-path limits' counts) or None
     """
 
     __slots__ = ("idx", "o64", "o32", "d", "tmax", "skip", "prim", "mat", "p", "ng", "ns", "bary",
-                 "beta", "pdf_prev", "no_mis", "specular", "depth", "bounces")
+                 "beta", "pdf_prev", "no_mis", "specular", "medium", "volume_bounces", "depth", "bounces")
     # Per-path arrays, compacted and joined alike (depth and bounces are handled apart), and
     # those a path carries from its ray to the vertex it arrives at.
     _ARRAYS = __slots__[:-2]
-    _CARRIED = ("idx", "d", "beta", "specular")
+    _CARRIED = ("idx", "d", "beta", "specular", "medium", "volume_bounces")
     _SPENT = ("o64", "o32", "tmax", "skip", "prim", "mat", "p", "ng", "ns", "bary", "pdf_prev", "no_mis")
 
     def __init__(self, idx: np.ndarray, depth=0, **fields):
@@ -162,6 +164,8 @@ class PathState:
         out.o32 = offset_origin(out.o64, n if reflects else towards(n, wi))
         if self.specular is not None:
             out.specular = self.specular[rows]
+        if self.medium is not None:  # the caller changes it where the path crosses a boundary
+            out.medium, out.volume_bounces = self.medium[rows], self.volume_bounces[rows]
         if self.bounces is not None:
             out.bounces = self.bounces.take(rows)
         return out

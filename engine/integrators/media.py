@@ -1,0 +1,227 @@
+"""Homogeneous media in the path tracer: which medium a path is in, distance sampling along
+its rays, transmittance of shadow rays, and the scattering vertices (light sample and
+phase-function sample, combined by the balance heuristic as at surfaces).
+
+A path's medium is the material of the closed mesh it is inside (-1: none). It changes where
+the path crosses the surface of a material that bounds a medium: into the mesh (against the
+triangle's geometric normal, which points out of a closed mesh) enters it, out of it leaves
+it for vacuum (media do not nest in this version). Camera rays start outside every medium.
+
+Distance sampling (Cycles' homogeneous case, closure/volume.h volume_sample_channel): a
+channel c is picked with probability w_c proportional to |beta_c albedo_c|, the distance
+t ~ sigma_t[c] exp(-sigma_t[c] t) from the same number rescaled; the one-sample MIS over
+channels gives the densities
+
+    p(t) = sum_c w_c sigma_t[c] exp(-sigma_t[c] t)   (a collision before the surface at t_s)
+    P    = sum_c w_c exp(-sigma_t[c] t_s)            (none: the ray reaches the surface)
+
+so a collision weighs T(t) sigma_s / p(t) and a pass T(t_s) / P. Emission in the medium
+(radiance per unit length) is added at collisions as T(t) E / p(t). A path past its volume
+bounce limit (Cycles' TERMINATE flags) or in a medium that does not scatter is only
+attenuated: beta T(t_s), and the emission integrated in closed form, E (1 - T) / sigma_t.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..accel import offset_origin
+from ..bsdf.lobes.henyey_greenstein import HenyeyGreenstein
+from ..nodes import light_path as lp
+from ..scene import RAY_SHADOW
+from ..vec import dot, scale, take
+from ..volumes import Media
+from .path_state import PathState, rows_of
+from .surface import towards
+
+# Surfaces a shadow ray crosses at most on its way through media boundaries; past it the
+# light is taken as blocked.
+MAX_CROSSINGS = 16
+_HG = HenyeyGreenstein()
+
+
+def _exp_neg(sigma: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """exp(-sigma t) (K,3) for t (K,) that may be inf (0 there where sigma > 0, 1 where 0)."""
+    x = sigma * t[:, None]
+    x[sigma == 0] = 0.0
+    return np.exp(-x)
+
+
+def after_crossing(media: Media, medium: np.ndarray, mat: np.ndarray, ng: np.ndarray, wo: np.ndarray,
+                   wi: np.ndarray) -> np.ndarray:
+    """The medium (K,) of paths in `medium` leaving a vertex on material mat (K,) with
+    geometric normal ng (K,3) (the triangle's own, outward) from wo to wi (K,3): entering
+    where wi crosses into a medium's mesh, vacuum where it crosses out."""
+    cos_i = dot(wi, ng)
+    crosses = media.has[mat] & ((cos_i < 0) != (dot(wo, ng) < 0))
+    if not crosses.any():
+        return medium
+    return np.where(crosses, np.where(cos_i < 0, mat, -1), medium)
+
+
+class MediumSteps:
+    """The path tracer's media (a Media table) and what their steps need of it."""
+
+    def __init__(self, tracer, media: Media, light_group, bsdf_group):
+        """light_group, bsdf_group: depth -> the tracer's random-number groups of that bounce
+        (distance sampling takes the light group's lane 3, which surfaces leave unused)."""
+        self.tracer, self.media = tracer, media
+        self.light_group, self.bsdf_group = light_group, bsdf_group
+        self.ng_raw = np.asarray(tracer.accel.ng, np.float64)
+        self.shadow_accel = tracer.visibility.views.get(RAY_SHADOW, tracer.accel)
+        self.limit = tracer.scene.settings.volume_bounces
+
+    def start(self, paths) -> None:
+        paths.medium = np.full(len(paths), -1, np.int64)
+        paths.volume_bounces = np.zeros(len(paths), np.int32)
+
+    # -- distance sampling ---------------------------------------------------------------
+    def propagate(self, L, sampler, paths, hit):
+        """Distance sampling along the rays of paths (before arrive). Returns (paths, hit)
+        of those that reach their surface (or escape), their throughput updated, and the
+        PathState of those that collided, on the rays their phase samples continue along
+        (or None)."""
+        rows = np.flatnonzero(paths.medium >= 0)
+        if len(rows) == 0:
+            return paths, hit, None
+        med, md = self.media, paths.medium[rows]
+        sigma_t, sigma_s, emission = take(med.sigma_t, md), take(med.sigma_s, md), take(med.emission, md)
+        t_s = np.where(hit.prim[rows] >= 0, hit.t[rows], np.inf)
+        beta = take(paths.beta, rows)
+        attenuate = paths.bounces.last[rows] | ~np.any(sigma_s > 0, axis=1)
+        if paths.bounces.stop is not None:
+            attenuate |= paths.bounces.stop[rows]
+        new_beta = beta.copy()
+        collide = np.zeros(len(rows), bool)
+        a = np.flatnonzero(attenuate)
+        if len(a):
+            T = _exp_neg(sigma_t[a], t_s[a])
+            glow = np.any(emission[a] != 0, axis=1)
+            if glow.any():
+                g = a[glow]
+                s_t = sigma_t[g]
+                seg = np.where(s_t > 0, (1.0 - T[glow]) / np.where(s_t > 0, s_t, 1.0), t_s[g][:, None])
+                self.tracer._add(L, paths.idx[rows[g]], beta[g] * emission[g] * seg, None, paths.depth)
+            new_beta[a] = beta[a] * T
+        s = np.flatnonzero(~attenuate)
+        if len(s):
+            albedo = np.divide(sigma_s[s], sigma_t[s], out=np.zeros((len(s), 3)), where=sigma_t[s] > 0)
+            w = np.abs(beta[s] * albedo)
+            total = w.sum(axis=1)
+            w = np.where(total[:, None] > 0, w / np.where(total > 0, total, 1.0)[:, None], 1.0 / 3.0)
+            u = sampler.get(self.light_group(rows_of(paths.depth, rows[s])), paths.idx[rows[s]], lanes=(3,))[:, 0]
+            cdf = np.cumsum(w, axis=1)
+            c = np.minimum((u[:, None] >= cdf).sum(axis=1), 2)
+            lo = np.where(c > 0, cdf[np.arange(len(s)), np.maximum(c - 1, 0)], 0.0)
+            wc = w[np.arange(len(s)), c]
+            u2 = np.clip((u - lo) / np.where(wc > 0, wc, 1.0), 0.0, 1.0 - 1e-16)
+            st_c = sigma_t[s][np.arange(len(s)), c]
+            t = np.where(st_c > 0, -np.log1p(-u2) / np.where(st_c > 0, st_c, 1.0), np.inf)
+            hits = t < t_s[s]
+            tt = np.where(hits, t, t_s[s])
+            T = _exp_neg(sigma_t[s], tt)
+            pdf_t = np.where(hits, (w * sigma_t[s] * T).sum(axis=1), (w * T).sum(axis=1))
+            inv = np.divide(1.0, pdf_t, out=np.zeros(len(s)), where=pdf_t > 0)
+            new_beta[s] = beta[s] * T * np.where(hits[:, None], sigma_s[s], 1.0) * inv[:, None]
+            glow = hits & np.any(emission[s] != 0, axis=1)
+            if glow.any():
+                g = np.flatnonzero(glow)
+                self.tracer._add(L, paths.idx[rows[s[g]]], beta[s[g]] * T[g] * emission[s[g]] * inv[g][:, None],
+                                 None, paths.depth)
+            collide[s] = hits
+            t_coll = np.zeros(len(rows))
+            t_coll[s] = tt
+        paths.beta = paths.beta.copy()
+        paths.beta[rows] = new_beta
+        coll = rows[collide]
+        if len(coll) == 0:
+            return paths, hit, None
+        scattered = self._scatter_vertices(L, sampler, paths.take(coll), t_coll[collide])
+        keep = np.ones(len(paths), bool)
+        keep[coll] = False
+        rest = np.flatnonzero(keep)
+        return paths.take(rest), hit.take(rest), scattered
+
+    # -- scattering vertices -------------------------------------------------------------
+    def _scatter_vertices(self, L, sampler, paths, t):
+        """Paths (on their rays) that collide at distance t (K,): a light sample and a phase
+        sample at p = o + t d; returns the paths on the phase-sampled rays."""
+        tr = self.tracer
+        p = paths.o64 + paths.d * t[:, None]
+        wo = -paths.d
+        g = _HG.parameters(self.media.g[paths.medium])
+        depth = paths.depth
+        if tr.strategy.nee and not tr.lights.empty:
+            u = sampler.get(self.light_group(depth), paths.idx, 3)
+            b = paths.bounces
+            ls = tr.lights.sample(p, u[:, 2], u[:, :2], in_unit=True,
+                                  ray=b.record() if tr.lights.world_reads else None)
+            f, pdf_ph = _HG.eval(g, wo, ls.wi)
+            pdf_mis = pdf_ph if tr.strategy.mis else 0.0
+            w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_mis, 1e-300))
+            contrib = paths.beta * f * scale(ls.Le, np.divide(w, ls.pdf, out=np.zeros(len(paths)), where=ls.valid))
+            test = np.flatnonzero(np.any(contrib != 0, axis=1))
+            if len(test):
+                T = self.transmittance(take(p, test), None, take(ls.target, test), np.full(len(test), -1),
+                                       ls.target_prim[test], paths.medium[test])
+                c = tr._clamp(take(contrib, test) * T, b.total[test] == 0, None)
+                tr._add(L, paths.idx[test], c, None, depth)
+        # The phase sample continues the path (weight 1: HG is sampled exactly).
+        u = sampler.get(self.bsdf_group(depth), paths.idx, lanes=(0, 1))
+        smp = _HG.sample(g, wo, u, None)
+        out = PathState(paths.idx, depth + 1, d=smp.wi, beta=paths.beta, skip=np.full(len(paths), -1, np.int64),
+                        o64=p, o32=p.astype(np.float32), tmax=None)
+        out.pdf_prev = smp.pdf if tr.strategy.bsdf_hits else np.zeros(len(paths))
+        out.no_mis = np.full(len(paths), not tr.strategy.nee)
+        out.medium = paths.medium
+        out.volume_bounces = paths.volume_bounces + 1
+        out.specular = None if paths.specular is None else np.zeros(len(paths), bool)
+        out.bounces = self._count(paths.bounces, out.volume_bounces)
+        return out
+
+    def _count(self, b, volume_bounces):
+        """Cycles' path_state_next for a volume scatter: one more bounce; past the total or
+        the volume limit the path is only attenuated and adds the emission it finds."""
+        b.total = b.total + 1
+        b.last = b.last | (b.total >= b.max_depth) | (volume_bounces >= self.limit)
+        if b.flag is not None:
+            cleared = np.uint32(~((1 << 11) - 1 | lp.MIS_SKIP) & 0xFFFFFFFF)
+            b.flag = ((b.flag & cleared) | np.uint32(lp.VOLUME_SCATTER)).astype(np.uint32)
+        return b
+
+    # -- shadow rays -----------------------------------------------------------------------
+    def transmittance(self, p, n_off, target, skip, target_prim, medium) -> np.ndarray:
+        """(K,3) transmittance of the segments from p (K,3) (offset along n_off (K,3) when
+        on a surface, else None) to target (K,3): 0 where an opaque surface blocks them,
+        else exp(-sum sigma_t d) over the media they cross; they pass the boundaries of
+        volume-only materials, entering and leaving those media."""
+        k = len(p)
+        T = np.ones((k, 3))
+        d = target - p
+        dist = np.sqrt(dot(d, d))
+        d = d / np.maximum(dist, 1e-300)[:, None]
+        tmax = dist * (1.0 - 1e-4)
+        o32 = p.astype(np.float32) if n_off is None else offset_origin(p, n_off)
+        alive = np.arange(k)
+        medium, skip, target_prim = medium.copy(), skip.copy(), np.asarray(target_prim)
+        mat_of = self.tracer.mesh.material
+        for _ in range(MAX_CROSSINGS):
+            hit = self.shadow_accel.intersect(o32, d, tmax, skip)
+            reach = (hit.prim < 0) | (hit.prim == target_prim)
+            seg = np.where(reach, tmax, hit.t)
+            T[alive] *= _exp_neg(take(self.media.sigma_t, medium), seg)
+            mat = mat_of[np.maximum(hit.prim, 0)]
+            cross = ~reach & self.media.passable[mat]
+            T[alive[~reach & ~cross]] = 0.0
+            r = np.flatnonzero(cross)
+            if len(r) == 0:
+                return T
+            h = hit.take(r)
+            ng = take(self.ng_raw, h.prim)
+            dr = take(d, r)
+            medium = np.where(dot(dr, ng) < 0, mat[r], -1)
+            alive, d, skip, target_prim = alive[r], dr, h.prim, target_prim[r]
+            tmax = tmax[r] - h.t
+            o32 = offset_origin(h.p, towards(ng, dr))
+        T[alive] = 0.0
+        return T
+

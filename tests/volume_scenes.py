@@ -1,0 +1,79 @@
+"""Small bpy scenes with homogeneous media, shared by tests/test_volumes.py and
+bench/volumes.py: a cube of Volume Scatter lit by a sun, and a sphere of Volume Absorption
+(no surface shader: a transparent boundary) in front of a bright background."""
+import math
+
+import bpy
+
+
+def _base(size: int, world_color):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    world = bpy.data.worlds.new("World")
+    world.color = world_color
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (*world_color, 1.0)
+    bg.inputs["Strength"].default_value = 1.0
+    sc.world = world
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.data.angle = math.radians(40.0)
+    cam.location = (0.0, -6.0, 1.0)
+    cam.rotation_euler = (math.radians(82.0), 0.0, 0.0)
+    sc.collection.objects.link(cam)
+    sc.camera = cam
+    sc.render.resolution_x = sc.render.resolution_y = size
+    sc.render.resolution_percentage = 100
+    sc.render.film_transparent = False
+    sc.cycles.device = "CPU"
+    sc.cycles.use_denoising = False
+    sc.cycles.use_adaptive_sampling = False
+    sc.cycles.volume_bounces = 0  # Cycles' default: single scattering (Ember's volume_bounces 1)
+    sc.cycles.filter_width = 1.5
+    return sc
+
+
+def _volume_material(name: str, kind: str, **inputs):
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    node = nt.nodes.new(kind)
+    for k, v in inputs.items():
+        node.inputs[k].default_value = v
+    nt.links.new(node.outputs[0], nt.nodes["Material Output"].inputs["Volume"])
+    return mat
+
+
+def scatter_cube(size: int = 24):
+    """A 2 m cube of Volume Scatter (grey-blue, density 1.2, g 0.3) over a diffuse floor, lit
+    by a sun from the side, black world."""
+    sc = _base(size, (0.0, 0.0, 0.0))
+    bpy.ops.mesh.primitive_cube_add(size=2.0, location=(0.0, 0.0, 1.3))  # off the floor: no coplanar faces
+    cube = bpy.context.object
+    cube.data.materials.append(_volume_material("fog", "ShaderNodeVolumeScatter", Color=(0.9, 0.8, 0.6, 1.0),
+                                                Density=1.2, Anisotropy=0.3))
+    bpy.ops.mesh.primitive_plane_add(size=12.0, location=(0.0, 0.0, 0.0))
+    floor = bpy.context.object
+    mat = bpy.data.materials.new("floor")
+    mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1.0)
+    mat.node_tree.nodes["Principled BSDF"].inputs["Specular IOR Level"].default_value = 0.0
+    floor.data.materials.append(mat)
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy, sun.data.angle = 3.0, 0.0
+    sun.rotation_euler = (math.radians(50.0), 0.0, math.radians(30.0))
+    sc.collection.objects.link(sun)
+    return sc
+
+
+def absorbing_sphere(size: int = 24):
+    """A unit sphere of Volume Absorption (density 1.5, colour (0.2, 0.5, 0.8)) in front of a
+    uniform bright background."""
+    sc = _base(size, (2.0, 2.0, 2.0))
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, location=(0.0, 0.0, 1.0), segments=48, ring_count=24)
+    sphere = bpy.context.object
+    bpy.ops.object.shade_smooth()
+    sphere.data.materials.append(_volume_material("ink", "ShaderNodeVolumeAbsorption", Color=(0.2, 0.5, 0.8, 1.0),
+                                                  Density=1.5))
+    return sc
+
+
+SCENES = {"scatter_cube": scatter_cube, "absorbing_sphere": absorbing_sphere}
