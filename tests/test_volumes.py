@@ -153,3 +153,40 @@ def test_media_match_cycles(addon, name, tmp_path):
     ember_images = [ember_image(sc, "PATH", SAMPLES, k) for k in range(SEEDS)]
     cycles_images = [cycles_image(sc, SAMPLES, k, tmp_path / f"c{k}.exr") for k in range(SEEDS)]
     agree(ember_images, cycles_images, n_tests=len(CYCLES_SCENES), tol=0.0)
+
+
+def _fog_sphere(**kw):
+    v, t, n = uv_sphere((0, 0, 0), 1.0, 12, 24)
+    mesh = Mesh(v, t, n, np.zeros(len(t), np.int32))
+    coef = volumes.volume_scatter((0.8, 0.8, 0.8), 1.0, 0.0)
+    return Scene(mesh, Materials.make([_volume_row(coef)]), Lights.make([]), World(color=W),
+                 perspective((0, -3.5, 0), (0, 0, 0), 35), settings(width=8, height=8, samples=2, **kw))
+
+
+@pytest.mark.parametrize("kw, says", [(dict(integrator="photon", photons=1000, caustic_photons=1000), "renders without volumes"),
+                                      (dict(passes=("Combined", "Diffuse Direct")), "left out of renders with light")])
+def test_where_volumes_are_left_out_a_warning_says_so(kw, says):
+    session = RenderSession(_fog_sphere(**kw))
+    session.run()
+    assert any(says in w for w in session.warnings), session.warnings
+    assert np.all(np.isfinite(session.film.mean()))
+
+
+def test_auto_chooses_the_path_tracer_for_volumes():
+    session = RenderSession(_fog_sphere(integrator="auto"))
+    assert session.scene.settings.integrator == "path"
+    assert not any("volume" in w.lower() for w in session.warnings)
+
+
+def test_camera_inside_a_medium():
+    """The slab's camera moved inside it, at half its depth: the attenuation from its near
+    clip on (camera rays start there, as Cycles')."""
+    coef = volumes.Coefficients(np.zeros(3), np.array([0.3, 1.2, 3.0]), np.array([0.5, 0.2, 0.1]))
+    h = 0.5
+    mesh = quads_mesh(box_quads((-5, -5, 0), (5, 5, h)), [0] * 6)
+    scene = Scene(mesh, Materials.make([_volume_row(coef)]), Lights.make([]), World(color=W),
+                  perspective((0, 0, h / 2), (0, 0, -1), 0.5), settings(width=4, height=4, samples=4))
+    mean, _ = _render(scene)
+    T = np.exp(-coef.sigma_a * (h / 2 - scene.camera.clip_start))
+    expected = W * T + coef.emission * (1 - T) / coef.sigma_a
+    assert np.allclose(mean.reshape(-1, 3), expected, rtol=1e-4), (mean.reshape(-1, 3)[0], expected)

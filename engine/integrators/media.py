@@ -5,7 +5,8 @@ phase-function sample, combined by the balance heuristic as at surfaces).
 A path's medium is the material of the closed mesh it is inside (-1: none). It changes where
 the path crosses the surface of a material that bounds a medium: into the mesh (against the
 triangle's geometric normal, which points out of a closed mesh) enters it, out of it leaves
-it for vacuum (media do not nest in this version). Camera rays start outside every medium.
+it for vacuum (media do not nest in this version). Camera rays start in the medium around the
+camera's eye (one for all of them: an orthographic camera's rays are taken to start there too).
 
 Distance sampling (Cycles' homogeneous case, closure/volume.h volume_sample_channel): a
 channel c is picked with probability w_c proportional to |beta_c albedo_c|, the distance
@@ -69,9 +70,32 @@ class MediumSteps:
         self.ng_raw = np.asarray(tracer.accel.ng, np.float64)
         self.shadow_accel = tracer.visibility.views.get(RAY_SHADOW, tracer.accel)
         self.limit = tracer.scene.settings.volume_bounces
+        eye = np.asarray(tracer.scene.camera.world_from_camera, np.float64)[:3, 3]
+        self.camera_medium = self.medium_at(eye)
+
+    def medium_at(self, p: np.ndarray) -> int:
+        """The medium around the point p (3,): the first medium whose boundary a ray from p
+        crosses outward before crossing it inward (Cycles finds the camera's volume stack by
+        a ray the same way), -1 for none."""
+        d = np.array([[0.48, 0.6, 0.64]])  # any direction; off the axes, where box edges lie
+        o32, skip, seen = p[None].astype(np.float32), np.array([-1]), set()
+        mat_of = self.tracer.mesh.material
+        for _ in range(MAX_CROSSINGS * 4):
+            hit = self.tracer.accel.intersect(o32, d, None, skip)
+            prim = int(hit.prim[0])
+            if prim < 0:
+                return -1
+            mat = int(mat_of[prim])
+            if self.media.has[mat] and mat not in seen:
+                if float(dot(d, self.ng_raw[prim][None])[0]) > 0:
+                    return mat
+                seen.add(mat)
+            o32, skip = offset_origin(hit.p, towards(self.ng_raw[prim][None], d)), hit.prim
+        return -1
 
     def start(self, paths) -> None:
-        paths.medium = np.full(len(paths), -1, np.int64)
+        """Camera paths begin in the medium around the camera's eye."""
+        paths.medium = np.full(len(paths), self.camera_medium, np.int64)
         paths.volume_bounces = np.zeros(len(paths), np.int32)
 
     # -- distance sampling ---------------------------------------------------------------
