@@ -46,6 +46,8 @@ from ..nodes.hits import provides
 from ..nodes.material import compiled_material, with_phong
 from ..textures import LUMINANCE
 from .export_nodes import export_graph
+from .export_volume import medium_of
+from .sockets import follow_link, follow_socket  # noqa: F401 (others import them from here)
 
 GREY = (0.8, 0.8, 0.8)
 DEFAULT_NAME = "default"
@@ -66,28 +68,6 @@ def find_output(tree, bl_idname: str):
         if getattr(n, "is_active_output", False):
             return n
     return outs[0] if outs else None
-
-
-def follow_socket(socket):
-    """(node, output socket) feeding `socket` through reroutes, or (None, None) if
-    unconnected or muted."""
-    seen = 0
-    while socket is not None and socket.is_linked and seen < 64:
-        link = socket.links[0]
-        if getattr(link, "is_muted", False) or not getattr(link, "is_valid", True):
-            return None, None
-        node = link.from_node
-        if node.bl_idname == "NodeReroute":
-            socket = node.inputs[0] if node.inputs else None
-            seen += 1
-            continue
-        return node, link.from_socket
-    return None, None
-
-
-def follow_link(socket):
-    """The node feeding `socket` (through reroutes), or None if unconnected or muted."""
-    return follow_socket(socket)[0]
 
 
 def rgb(socket) -> tuple:
@@ -560,7 +540,6 @@ def material_row(mat, textures: _Textures, warn, phong: bool = False) -> dict:
                    lobes=[dict(kind=LOBE_TRANSPARENT, weight=(1.0, 1.0, 1.0), color=(1.0, 1.0, 1.0))])
     else:
         row = _surface_row(mat, out, surface, textures, warn, phong)
-    from .export_volume import medium_of  # it reads this module's socket helpers
     notes = []
     medium = medium_of(volume_socket, notes.append)
     if notes:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import volumes
-from .export_material import follow_socket
+from .sockets import follow_socket
 
 _PHASES = {"HENYEY_GREENSTEIN"}
 

@@ -16,10 +16,19 @@ channels gives the densities
     p(t) = sum_c w_c sigma_t[c] exp(-sigma_t[c] t)   (a collision before the surface at t_s)
     P    = sum_c w_c exp(-sigma_t[c] t_s)            (none: the ray reaches the surface)
 
-so a collision weighs T(t) sigma_s / p(t) and a pass T(t_s) / P. Emission in the medium
-(radiance per unit length) is added at collisions as T(t) E / p(t). A path past its volume
+so a collision weighs T(t) sigma_s / p(t) and a pass T(t_s) / P. A collision continues the
+path along a phase sample. Direct light is sampled apart, as Cycles does, at a second point
+on every ray segment in a medium, drawn from the exponential truncated to [0, t_s] (density
+p_d(t) = sum_c w_c sigma_t[c] exp(-sigma_t[c] t) / (1 - exp(-sigma_t[c] t_s))): one light
+sample there, weighted T(t) sigma_s / p_d(t) and by the balance heuristic against the phase
+sample of the collision (the two estimate the same single-scattered light, and their weights
+sum to 1 at every point and direction). Emission in the medium (radiance per unit length)
+is added at that point too, as T(t) E / p_d(t). A path past its volume
 bounce limit (Cycles' TERMINATE flags) or in a medium that does not scatter is only
 attenuated: beta T(t_s), and the emission integrated in closed form, E (1 - T) / sigma_t.
+Russian roulette keeps the path tracer's rule, survival = the largest reflectance of the
+vertex's scattering function: a phase function's is 1 (the medium's albedo is in the
+collision's weight), so collisions never end a path by roulette.
 """
 from __future__ import annotations
 
@@ -45,6 +54,25 @@ def _exp_neg(sigma: np.ndarray, t: np.ndarray) -> np.ndarray:
     x = sigma * t[:, None]
     x[sigma == 0] = 0.0
     return np.exp(-x)
+
+
+def _channel(w: np.ndarray, u: np.ndarray):
+    """(c, u') (K,): a channel drawn with probabilities w (K,3) by u (K,), and u rescaled to
+    [0, 1) within its cell for reuse (Cycles' volume_sample_channel)."""
+    cdf = np.cumsum(w, axis=1)
+    c = np.minimum((u[:, None] >= cdf).sum(axis=1), 2)
+    ar = np.arange(len(u))
+    lo = np.where(c > 0, cdf[ar, np.maximum(c - 1, 0)], 0.0)
+    wc = w[ar, c]
+    return c, np.clip((u - lo) / np.where(wc > 0, wc, 1.0), 0.0, 1.0 - 1e-16)
+
+
+def _span(sigma: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """1 - exp(-sigma t) (K,3): the exponential's mass on [0, t]; t itself where sigma = 0
+    (a uniform density there), 1 for t = inf."""
+    x = sigma * np.where(np.isfinite(t), t, 1.0)[:, None]
+    out = np.where(np.isfinite(t)[:, None], -np.expm1(-x), 1.0)
+    return np.where(sigma > 0, out, t[:, None])
 
 
 def after_crossing(media: Media, medium: np.ndarray, mat: np.ndarray, ng: np.ndarray, wo: np.ndarray,
@@ -128,67 +156,87 @@ class MediumSteps:
             new_beta[a] = beta[a] * T
         s = np.flatnonzero(~attenuate)
         if len(s):
-            albedo = np.divide(sigma_s[s], sigma_t[s], out=np.zeros((len(s), 3)), where=sigma_t[s] > 0)
+            ar, r, st_s, ts = np.arange(len(s)), rows[s], sigma_t[s], t_s[s]
+            albedo = np.divide(sigma_s[s], st_s, out=np.zeros((len(s), 3)), where=st_s > 0)
             w = np.abs(beta[s] * albedo)
             total = w.sum(axis=1)
             w = np.where(total[:, None] > 0, w / np.where(total > 0, total, 1.0)[:, None], 1.0 / 3.0)
-            u = sampler.get(self.light_group(rows_of(paths.depth, rows[s])), paths.idx[rows[s]], lanes=(3,))[:, 0]
-            cdf = np.cumsum(w, axis=1)
-            c = np.minimum((u[:, None] >= cdf).sum(axis=1), 2)
-            lo = np.where(c > 0, cdf[np.arange(len(s)), np.maximum(c - 1, 0)], 0.0)
-            wc = w[np.arange(len(s)), c]
-            u2 = np.clip((u - lo) / np.where(wc > 0, wc, 1.0), 0.0, 1.0 - 1e-16)
-            st_c = sigma_t[s][np.arange(len(s)), c]
-            t = np.where(st_c > 0, -np.log1p(-u2) / np.where(st_c > 0, st_c, 1.0), np.inf)
-            hits = t < t_s[s]
-            tt = np.where(hits, t, t_s[s])
-            T = _exp_neg(sigma_t[s], tt)
-            pdf_t = np.where(hits, (w * sigma_t[s] * T).sum(axis=1), (w * T).sum(axis=1))
+            depth = rows_of(paths.depth, r)
+            # The collision that continues the path: light group lane 3 (surfaces leave it unused).
+            c, u = _channel(w, sampler.get(self.light_group(depth), paths.idx[r], lanes=(3,))[:, 0])
+            st_c = st_s[ar, c]
+            t = np.where(st_c > 0, -np.log1p(-u) / np.where(st_c > 0, st_c, 1.0), np.inf)
+            hits = t < ts
+            tt = np.where(hits, t, ts)
+            T = _exp_neg(st_s, tt)
+            pdf_t = np.where(hits, (w * st_s * T).sum(axis=1), (w * T).sum(axis=1))
             inv = np.divide(1.0, pdf_t, out=np.zeros(len(s)), where=pdf_t > 0)
             new_beta[s] = beta[s] * T * np.where(hits[:, None], sigma_s[s], 1.0) * inv[:, None]
-            glow = hits & np.any(emission[s] != 0, axis=1)
-            if glow.any():
-                g = np.flatnonzero(glow)
-                self.tracer._add(L, paths.idx[rows[s[g]]], beta[s[g]] * T[g] * emission[s[g]] * inv[g][:, None],
-                                 None, paths.depth)
             collide[s] = hits
             t_coll = np.zeros(len(rows))
             t_coll[s] = tt
+            # Direct light and emission at a point drawn on the whole segment (Cycles' direct
+            # scatter): the exponential truncated to [0, t_s], with the same channel MIS; BSDF
+            # group lane 2 (a surface's lobe choice: the two never meet on one vertex).
+            c, u = _channel(w, sampler.get(self.bsdf_group(depth), paths.idx[r], lanes=(2,))[:, 0])
+            span = _span(st_s, ts)
+            st_c, span_c = st_s[ar, c], span[ar, c]
+            t = np.where(st_c > 0, -np.log1p(-u * span_c) / np.where(st_c > 0, st_c, 1.0), u * ts)
+            T = _exp_neg(st_s, t)
+            pdf_d = (w * np.where(st_s > 0, st_s, 1.0) * T / np.maximum(span, 1e-300)).sum(axis=1)
+            ok = np.isfinite(t) & (pdf_d > 0)
+            weight = beta[s] * T * np.divide(1.0, pdf_d, out=np.zeros(len(s)), where=ok)[:, None]
+            glow = ok & np.any(emission[s] != 0, axis=1)
+            if glow.any():
+                g = np.flatnonzero(glow)
+                self.tracer._add(L, paths.idx[r[g]], weight[g] * emission[s[g]], None, paths.depth)
+            if self.tracer.strategy.nee and not self.tracer.lights.empty:
+                k = np.flatnonzero(ok)
+                self._direct(L, sampler, paths, r[k], t[k], weight[k] * sigma_s[s[k]])
         paths.beta = paths.beta.copy()
         paths.beta[rows] = new_beta
         coll = rows[collide]
         if len(coll) == 0:
             return paths, hit, None
-        scattered = self._scatter_vertices(L, sampler, paths.take(coll), t_coll[collide])
+        scattered = self._scatter_vertices(sampler, paths.take(coll), t_coll[collide])
         keep = np.ones(len(paths), bool)
         keep[coll] = False
         rest = np.flatnonzero(keep)
         return paths.take(rest), hit.take(rest), scattered
 
-    # -- scattering vertices -------------------------------------------------------------
-    def _scatter_vertices(self, L, sampler, paths, t):
-        """Paths (on their rays) that collide at distance t (K,): a light sample and a phase
-        sample at p = o + t d; returns the paths on the phase-sampled rays."""
+    # -- scattering ------------------------------------------------------------------------
+    def _direct(self, L, sampler, paths, rows, t, beta):
+        """One light sample at the points t (K,) along the rays of paths `rows` (K,), with
+        throughput beta (K,3) there, weighted against phase sampling (balance heuristic)."""
+        tr = self.tracer
+        p = take(paths.o64, rows) + take(paths.d, rows) * t[:, None]
+        wo = -take(paths.d, rows)
+        medium = paths.medium[rows]
+        g = _HG.parameters(self.media.g[medium])
+        depth, b = rows_of(paths.depth, rows), paths.bounces
+        u = sampler.get(self.light_group(depth), paths.idx[rows], 3)
+        ls = tr.lights.sample(p, u[:, 2], u[:, :2], in_unit=True,
+                              ray=b.record(rows) if tr.lights.world_reads else None)
+        f, pdf_ph = _HG.eval(g, wo, ls.wi)
+        pdf_mis = pdf_ph if tr.strategy.mis else 0.0
+        w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_mis, 1e-300))
+        contrib = beta * f * scale(ls.Le, np.divide(w, ls.pdf, out=np.zeros(len(rows)), where=ls.valid))
+        test = np.flatnonzero(np.any(contrib != 0, axis=1))
+        if len(test) == 0:
+            return
+        T = self.transmittance(take(p, test), None, take(ls.target, test), np.full(len(test), -1),
+                               ls.target_prim[test], medium[test])
+        c = tr._clamp(take(contrib, test) * T, b.total[rows[test]] == 0, None)
+        tr._add(L, paths.idx[rows[test]], c, None, depth)
+
+    def _scatter_vertices(self, sampler, paths, t):
+        """Paths (on their rays) that collide at distance t (K,): a phase sample at
+        p = o + t d continues them; returns the paths on those rays."""
         tr = self.tracer
         p = paths.o64 + paths.d * t[:, None]
         wo = -paths.d
         g = _HG.parameters(self.media.g[paths.medium])
         depth = paths.depth
-        if tr.strategy.nee and not tr.lights.empty:
-            u = sampler.get(self.light_group(depth), paths.idx, 3)
-            b = paths.bounces
-            ls = tr.lights.sample(p, u[:, 2], u[:, :2], in_unit=True,
-                                  ray=b.record() if tr.lights.world_reads else None)
-            f, pdf_ph = _HG.eval(g, wo, ls.wi)
-            pdf_mis = pdf_ph if tr.strategy.mis else 0.0
-            w = np.where(ls.delta, 1.0, ls.pdf / np.maximum(ls.pdf + pdf_mis, 1e-300))
-            contrib = paths.beta * f * scale(ls.Le, np.divide(w, ls.pdf, out=np.zeros(len(paths)), where=ls.valid))
-            test = np.flatnonzero(np.any(contrib != 0, axis=1))
-            if len(test):
-                T = self.transmittance(take(p, test), None, take(ls.target, test), np.full(len(test), -1),
-                                       ls.target_prim[test], paths.medium[test])
-                c = tr._clamp(take(contrib, test) * T, b.total[test] == 0, None)
-                tr._add(L, paths.idx[test], c, None, depth)
         # The phase sample continues the path (weight 1: HG is sampled exactly).
         u = sampler.get(self.bsdf_group(depth), paths.idx, lanes=(0, 1))
         smp = _HG.sample(g, wo, u, None)
