@@ -3,8 +3,9 @@
     ./dev python bench/volumes.py [--size 64] [--samples 64] [--seeds 8] [--reference 4096]
 
 Scenes of tests/volume_scenes.py (a cube of Volume Scatter lit by a sun over a floor; a
-sphere of Volume Absorption in front of a bright background), at Cycles' default volume
-bounces (single scattering). A Cycles reference at --reference samples per pixel; then
+sphere of Volume Absorption in front of a bright background; the sphere under glass; the
+cube as an emitting Principled Volume at four volume bounces), the others at Cycles' default
+volume bounces (single scattering). A Cycles reference at --reference samples per pixel; then
 --seeds renders each of Ember and Cycles at --samples: the bias of Ember's mean image
 (relative to the reference's mean, with its standard error over seeds, and per quadrant),
 and the relMSE of a single render at equal samples, sum (x - ref)^2 / (ref^2 + 1e-2) over
@@ -77,7 +78,7 @@ def main() -> None:
              f"`./dev python bench/volumes.py --size {args.size} --samples {args.samples} --seeds {args.seeds} "
              f"--reference {args.reference}` (one machine, one run; 2 cores shared with other work, so the "
              "times are indicative only). Scenes: tests/volume_scenes.py, at Cycles' default volume bounces "
-             "(single scattering; Ember's volume_bounces 1).", "",
+             "(single scattering; Ember's volume_bounces 1) but principled_fog (Cycles' 3, Ember's 4).", "",
              "Bias: Ember's mean over the seeds against the Cycles reference, image mean and its four "
              "quadrants (top-left, top-right, bottom-left, bottom-right), with the standard error of "
              "Ember's mean; Cycles' own low-sample mean against its reference for scale. relMSE: one "

@@ -9,7 +9,8 @@
   equilibrium), which checks distance sampling with the channel MIS, the collision
   estimator of emission, light and phase sampling with MIS and shadow transmittance.
 - Agreement with Cycles (region t-test) on a cube of Volume Scatter lit by a sun over a
-  floor and a sphere of Volume Absorption in front of a bright background.
+  floor, a sphere of Volume Absorption in front of a bright background, the same under glass,
+  and the cube as an emitting Principled Volume with four volume bounces.
 """
 import numpy as np
 import pytest
@@ -109,7 +110,7 @@ def test_single_scattering_is_darker_than_all_orders():
 # -- Blender: export and Cycles ---------------------------------------------------------------
 SEEDS = 8
 SAMPLES = 32
-CYCLES_SCENES = ("scatter_cube", "absorbing_sphere")
+CYCLES_SCENES = ("scatter_cube", "absorbing_sphere", "glass_of_ink", "principled_fog")
 
 
 @pytest.fixture(scope="module")
@@ -145,8 +146,8 @@ def test_volume_material_export(addon):
 @pytest.mark.blender
 @pytest.mark.parametrize("name", CYCLES_SCENES)
 def test_media_match_cycles(addon, name, tmp_path):
-    """Region means (image and quadrants) of Ember and Cycles at Cycles' default volume
-    bounces (single scattering) agree within the noise of independent seeds."""
+    """Region means (image and quadrants) of Ember and Cycles at the same volume bounces
+    agree within the noise of independent seeds."""
     from cycles_renders import agree, cycles_image, ember_image
     import volume_scenes
     sc = volume_scenes.SCENES[name](24)

@@ -1,6 +1,7 @@
 """Small bpy scenes with homogeneous media, shared by tests/test_volumes.py and
-bench/volumes.py: a cube of Volume Scatter lit by a sun, and a sphere of Volume Absorption
-(no surface shader: a transparent boundary) in front of a bright background."""
+bench/volumes.py: a cube of Volume Scatter lit by a sun, a sphere of Volume Absorption (no
+surface shader: a transparent boundary) in front of a bright background, the same sphere
+under glass, and the cube as an emitting Principled Volume with multiple scattering."""
 import math
 
 import bpy
@@ -76,4 +77,30 @@ def absorbing_sphere(size: int = 24):
     return sc
 
 
-SCENES = {"scatter_cube": scatter_cube, "absorbing_sphere": absorbing_sphere}
+def glass_of_ink(size: int = 24):
+    """absorbing_sphere with a smooth Glass BSDF (IOR 1.33) as its surface: the medium behind
+    a refracting boundary."""
+    sc = absorbing_sphere(size)
+    nt = bpy.data.materials["ink"].node_tree
+    glass = nt.nodes.new("ShaderNodeBsdfGlass")
+    glass.inputs["IOR"].default_value, glass.inputs["Roughness"].default_value = 1.33, 0.0
+    nt.links.new(glass.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return sc
+
+
+def principled_fog(size: int = 24):
+    """scatter_cube with a Principled Volume (absorption colour, backward anisotropy,
+    emission) and four volume bounces (Cycles' 3)."""
+    sc = scatter_cube(size)
+    nt = bpy.data.materials["fog"].node_tree
+    node = nt.nodes.new("ShaderNodeVolumePrincipled")
+    for k, v in (("Color", (0.7, 0.5, 0.3, 1.0)), ("Density", 0.8), ("Absorption Color", (0.2, 0.4, 0.8, 1.0)),
+                 ("Anisotropy", -0.3), ("Emission Strength", 0.2), ("Emission Color", (1.0, 0.5, 0.2, 1.0))):
+        node.inputs[k].default_value = v
+    nt.links.new(node.outputs[0], nt.nodes["Material Output"].inputs["Volume"])
+    sc.cycles.volume_bounces, sc.ember.volume_bounces = 3, 4
+    return sc
+
+
+SCENES = {"scatter_cube": scatter_cube, "absorbing_sphere": absorbing_sphere, "glass_of_ink": glass_of_ink,
+          "principled_fog": principled_fog}
