@@ -30,7 +30,6 @@ import _bootstrap  # noqa: E402
 
 _bootstrap.load_ember()
 
-import bpy  # noqa: E402
 import ember  # noqa: E402
 
 from cycles_renders import cycles_image, ember_image, region_means  # noqa: E402

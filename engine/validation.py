@@ -190,7 +190,8 @@ def check_frame_memory(width: int, height: int, available: int | None = None) ->
 
 def has_light(scene: Scene) -> bool:
     world = scene.world
-    return (len(scene.lights) > 0 or bool(np.any(scene.materials.emission != 0))
+    glowing_media = scene.materials.volume_emission is not None and bool(np.any(scene.materials.volume_emission != 0))
+    return (len(scene.lights) > 0 or bool(np.any(scene.materials.emission != 0)) or glowing_media
             or bool(np.max(np.abs(world.color)) > 0
                     and (getattr(world, "image", None) is None or np.max(np.abs(world.image)) > 0)))
 

@@ -115,7 +115,7 @@ CYCLES_SCENES = ("scatter_cube", "absorbing_sphere", "glass_of_ink", "principled
 
 @pytest.fixture(scope="module")
 def addon():
-    bpy = pytest.importorskip("bpy")  # noqa: F841
+    pytest.importorskip("bpy")
     import ember
     ember.register()
     yield
@@ -191,3 +191,15 @@ def test_camera_inside_a_medium():
     T = np.exp(-coef.sigma_a * (h / 2 - scene.camera.clip_start))
     expected = W * T + coef.emission * (1 - T) / coef.sigma_a
     assert np.allclose(mean.reshape(-1, 3), expected, rtol=1e-4), (mean.reshape(-1, 3)[0], expected)
+
+
+def test_an_emitting_medium_is_a_light():
+    """A glowing medium alone lights the scene: no 'the image will be black' warning."""
+    coef = volumes.Coefficients(np.zeros(3), np.full(3, 0.5), np.full(3, 2.0))
+    v, t, n = uv_sphere((0, 0, 0), 1.0, 12, 24)
+    scene = Scene(Mesh(v, t, n, np.zeros(len(t), np.int32)), Materials.make([_volume_row(coef)]), Lights.make([]),
+                  World(), perspective((0, -3.5, 0), (0, 0, 0), 35), settings(width=8, height=8, samples=2))
+    session = RenderSession(scene)
+    session.run()
+    assert not any("black" in w for w in session.warnings), session.warnings
+    assert session.film.mean().max() > 0
