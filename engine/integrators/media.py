@@ -3,9 +3,10 @@ its rays, transmittance of shadow rays, and the scattering vertices (light sampl
 phase-function sample, combined by the balance heuristic as at surfaces).
 
 A path's medium is the material of the closed mesh it is inside (-1: none). It changes where
-the path crosses the surface of a material that bounds a medium: into the mesh (against the
-triangle's geometric normal, which points out of a closed mesh) enters it, out of it leaves
-it for vacuum (media do not nest in this version). Camera rays start in the medium around the
+the path is transmitted through the surface of a material that bounds a medium (Cycles'
+rule: by the bounce's label, not by the side the new ray leaves on): through the front of a
+triangle (its geometric normal points out of a closed mesh) it enters the medium, through
+the back it leaves it for vacuum (media do not nest in this version). Camera rays start in the medium around the
 camera's eye (one for all of them: an orthographic camera's rays are taken to start there too).
 
 Distance sampling (Cycles' homogeneous case, closure/volume.h volume_sample_channel): a
@@ -75,16 +76,17 @@ def _span(sigma: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.where(sigma > 0, out, t[:, None])
 
 
-def after_crossing(media: Media, medium: np.ndarray, mat: np.ndarray, ng: np.ndarray, wo: np.ndarray,
-                   wi: np.ndarray) -> np.ndarray:
-    """The medium (K,) of paths in `medium` leaving a vertex on material mat (K,) with
-    geometric normal ng (K,3) (the triangle's own, outward) from wo to wi (K,3): entering
-    where wi crosses into a medium's mesh, vacuum where it crosses out."""
-    cos_i = dot(wi, ng)
-    crosses = media.has[mat] & ((cos_i < 0) != (dot(wo, ng) < 0))
+def after_crossing(media: Media, medium: np.ndarray, mat: np.ndarray, ng: np.ndarray, d: np.ndarray,
+                   transmit: np.ndarray) -> np.ndarray:
+    """The medium (K,) of paths in `medium` going on from a vertex on material mat (K,) that
+    they reached along d (K,3), ng (K,3) the triangle's own (outward) normal: as Cycles'
+    volume_stack_enter_exit, a transmission (transmit (K,) bool: a refraction or a
+    transparent pass) through the surface of a medium's mesh enters that medium from the
+    front and leaves it for vacuum from the back; a reflection keeps the medium."""
+    crosses = media.has[mat] & transmit
     if not crosses.any():
         return medium
-    return np.where(crosses, np.where(cos_i < 0, mat, -1), medium)
+    return np.where(crosses, np.where(dot(d, ng) > 0, -1, mat), medium)
 
 
 class MediumSteps:

@@ -26,7 +26,7 @@ from ..vec import dot, gatherer, max3, normalize, scale, take
 
 from .. import camera as camera_mod
 from ..accel import Accel, offset_origin
-from ..bsdf.closure import LABEL_TRANSPARENT
+from ..bsdf.closure import LABEL_TRANSMIT, LABEL_TRANSPARENT
 from ..bsdf.fast_path import make_closure, plain_lambert_albedo
 from ..nodes import light_path as lp
 from ..nodes.hits import COUNT_FIELDS, RayState, camera_differentials, camera_footprint
@@ -357,7 +357,8 @@ class PathTracer:
             c = take(contrib, test[lit])
         else:  # through media: transmittance, and the medium on the light's side of the surface
             medium = after_crossing(self.media.media, paths.medium[rows], paths.mat[rows],
-                                    take(self.media.ng_raw, paths.prim[rows]), -take(paths.d, rows), take(ls.wi, test))
+                                    take(self.media.ng_raw, paths.prim[rows]), take(paths.d, rows),
+                                    dot(take(ls.wi, test), take(bsdf.ns, rows)) < 0)
             T = self.media.transmittance(take(paths.p, rows), n_off, take(ls.target, test), paths.prim[rows],
                                          ls.target_prim[test], medium)
             lit = np.flatnonzero(np.any(T != 0, axis=1))
@@ -390,8 +391,10 @@ class PathTracer:
         keep = np.flatnonzero(survive)
         wi = take(bs.wi, keep)
         if self.media is not None:
+            label = bs.label[keep]
             medium = after_crossing(self.media.media, paths.medium[keep], paths.mat[keep],
-                                    take(self.media.ng_raw, paths.prim[keep]), -take(paths.d, keep), wi)
+                                    take(self.media.ng_raw, paths.prim[keep]), take(paths.d, keep),
+                                    (label == LABEL_TRANSMIT) | (label == LABEL_TRANSPARENT))
         paths = paths.leave(keep, wi, take(beta, keep), reflects)
         if self.media is not None:
             paths.medium = medium
