@@ -10,7 +10,8 @@
   estimator of emission, light and phase sampling with MIS and shadow transmittance.
 - Agreement with Cycles (region t-test) on a cube of Volume Scatter lit by a sun over a
   floor, a sphere of Volume Absorption in front of a bright background, the same under glass,
-  and the cube as an emitting Principled Volume with four volume bounces.
+  the cube as an emitting Principled Volume with four volume bounces, and the cube lit by
+  an area light inside it (light and phase samples combined by MIS across its boundary).
 """
 import numpy as np
 import pytest
@@ -110,7 +111,7 @@ def test_single_scattering_is_darker_than_all_orders():
 # -- Blender: export and Cycles ---------------------------------------------------------------
 SEEDS = 8
 SAMPLES = 32
-CYCLES_SCENES = ("scatter_cube", "absorbing_sphere", "glass_of_ink", "principled_fog")
+CYCLES_SCENES = ("scatter_cube", "absorbing_sphere", "glass_of_ink", "principled_fog", "area_light_in_fog")
 
 
 @pytest.fixture(scope="module")

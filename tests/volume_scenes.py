@@ -1,7 +1,8 @@
 """Small bpy scenes with homogeneous media, shared by tests/test_volumes.py and
 bench/volumes.py: a cube of Volume Scatter lit by a sun, a sphere of Volume Absorption (no
 surface shader: a transparent boundary) in front of a bright background, the same sphere
-under glass, and the cube as an emitting Principled Volume with multiple scattering."""
+under glass, the cube as an emitting Principled Volume with multiple scattering, and the
+cube lit by an area light inside it."""
 import math
 
 import bpy
@@ -102,5 +103,17 @@ def principled_fog(size: int = 24):
     return sc
 
 
+def area_light_in_fog(size: int = 24):
+    """scatter_cube lit by an area light inside the cube instead of the sun: light samples
+    and phase samples that both reach it, across the cube's boundary."""
+    sc = scatter_cube(size)
+    bpy.data.objects.remove(bpy.data.objects["Sun"])
+    area = bpy.data.objects.new("Area", bpy.data.lights.new("Area", "AREA"))
+    area.data.energy, area.data.size = 30.0, 0.6
+    area.location, area.rotation_euler = (0.2, 0.0, 1.3), (math.radians(80.0), 0.0, 0.0)
+    sc.collection.objects.link(area)
+    return sc
+
+
 SCENES = {"scatter_cube": scatter_cube, "absorbing_sphere": absorbing_sphere, "glass_of_ink": glass_of_ink,
-          "principled_fog": principled_fog}
+          "principled_fog": principled_fog, "area_light_in_fog": area_light_in_fog}

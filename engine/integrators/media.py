@@ -38,7 +38,7 @@ import numpy as np
 from ..accel import offset_origin
 from ..bsdf.lobes.henyey_greenstein import HenyeyGreenstein
 from ..nodes import light_path as lp
-from ..scene import RAY_SHADOW
+from ..scene import RAY_CAMERA, RAY_DIFFUSE, RAY_SHADOW
 from ..vec import dot, scale, take
 from ..volumes import Media
 from .path_state import PathState, rows_of
@@ -134,6 +134,7 @@ class MediumSteps:
         of those that reach their surface (or escape), their throughput updated, and the
         PathState of those that collided, on the rays their phase samples continue along
         (or None)."""
+        paths.mis_pdf, paths.mis_off = paths.pdf_prev, paths.no_mis  # for passes through boundaries
         rows = np.flatnonzero(paths.medium >= 0)
         if len(rows) == 0:
             return paths, hit, None
@@ -146,6 +147,9 @@ class MediumSteps:
             attenuate |= paths.bounces.stop[rows]
         new_beta = beta.copy()
         collide = np.zeros(len(rows), bool)
+        t_sample = np.full(len(rows), np.inf)  # the collision distance drawn (inf: only attenuated)
+        w_all = np.zeros((len(rows), 3))  # the channel probabilities of the rows that sample
+        s = np.flatnonzero(~attenuate)
         a = np.flatnonzero(attenuate)
         if len(a):
             T = _exp_neg(sigma_t[a], t_s[a])
@@ -156,19 +160,20 @@ class MediumSteps:
                 seg = np.where(s_t > 0, (1.0 - T[glow]) / np.where(s_t > 0, s_t, 1.0), t_s[g][:, None])
                 self.tracer._add(L, paths.idx[rows[g]], beta[g] * emission[g] * seg, None, paths.depth)
             new_beta[a] = beta[a] * T
-        s = np.flatnonzero(~attenuate)
         if len(s):
             ar, r, st_s, ts = np.arange(len(s)), rows[s], sigma_t[s], t_s[s]
             albedo = np.divide(sigma_s[s], st_s, out=np.zeros((len(s), 3)), where=st_s > 0)
             w = np.abs(beta[s] * albedo)
             total = w.sum(axis=1)
             w = np.where(total[:, None] > 0, w / np.where(total > 0, total, 1.0)[:, None], 1.0 / 3.0)
+            w_all[s] = w
             depth = rows_of(paths.depth, r)
             # The collision that continues the path: light group lane 3 (surfaces leave it unused).
             c, u = _channel(w, sampler.get(self.light_group(depth), paths.idx[r], lanes=(3,))[:, 0])
             st_c = st_s[ar, c]
             t = np.where(st_c > 0, -np.log1p(-u) / np.where(st_c > 0, st_c, 1.0), np.inf)
             hits = t < ts
+            t_sample[s] = t
             tt = np.where(hits, t, ts)
             T = _exp_neg(st_s, tt)
             pdf_t = np.where(hits, (w * st_s * T).sum(axis=1), (w * T).sum(axis=1))
@@ -195,6 +200,8 @@ class MediumSteps:
             if self.tracer.strategy.nee and not self.tracer.lights.empty:
                 k = np.flatnonzero(ok)
                 self._direct(L, sampler, paths, r[k], t[k], weight[k] * sigma_s[s[k]])
+        if len(self.tracer.lights.hittable):
+            self._lights_passed(L, paths, rows, t_s, t_sample, sigma_t, attenuate, w_all)
         paths.beta = paths.beta.copy()
         paths.beta[rows] = new_beta
         coll = rows[collide]
@@ -205,6 +212,27 @@ class MediumSteps:
         keep[coll] = False
         rest = np.flatnonzero(keep)
         return paths.take(rest), hit.take(rest), scattered
+
+    def _lights_passed(self, L, paths, rows, t_s, t_sample, sigma_t, attenuate, w) -> None:
+        """Emission of the lights (area, sphere) that the rays `rows` in a medium pass before
+        their surface at t_s, at distance t each: beta T(t) where the ray is only attenuated,
+        beta T(t) / P(t) where the ray did not collide before t (P(t) its chance not to, from
+        the channel probabilities w), else nothing. (The path tracer's emission step leaves
+        these rays' lights out.)"""
+        tr, b = self.tracer, paths.bounces
+        beta = take(paths.beta, rows)
+
+        def through(t):
+            T = _exp_neg(sigma_t, t)
+            P = (w * T).sum(axis=1)
+            passed = np.where(attenuate, 1.0, np.divide(1.0, P, out=np.zeros(len(t)), where=(P > 0) & (t_sample > t)))
+            return beta * T * passed[:, None]
+
+        kind = None if b.ray is None else b.ray[rows]
+        camera = kind == RAY_CAMERA if kind is not None else rows_of(paths.depth, rows) == 0
+        c = tr.lights.emission_along(take(paths.o64, rows), take(paths.d, rows), t_s, paths.pdf_prev[rows],
+                                     ~paths.no_mis[rows], np.broadcast_to(camera, len(rows)), kind, through=through)
+        tr._add(L, paths.idx[rows], tr._clamp(c, b.total[rows] <= 1, None), None, paths.depth)
 
     # -- scattering ------------------------------------------------------------------------
     def _direct(self, L, sampler, paths, rows, t, beta):
@@ -257,6 +285,8 @@ class MediumSteps:
         the volume limit the path is only attenuated and adds the emission it finds."""
         b.total = b.total + 1
         b.last = b.last | (b.total >= b.max_depth) | (volume_bounces >= self.limit)
+        if b.ray is not None:  # no longer a camera ray; ray visibility has no volume kind: diffuse's
+            b.ray = np.full(len(b.ray), RAY_DIFFUSE, np.uint8)
         if b.flag is not None:
             cleared = np.uint32(~((1 << 11) - 1 | lp.MIS_SKIP) & 0xFFFFFFFF)
             b.flag = ((b.flag & cleared) | np.uint32(lp.VOLUME_SCATTER)).astype(np.uint32)

@@ -237,6 +237,8 @@ class PathTracer:
             c = paths.beta * lights.emission_along(paths.o64, paths.d, hit.t, paths.pdf_prev, use_mis, camera_ray, kind)
             if lit is not None:
                 c[~lit] = 0.0
+            if paths.medium is not None:  # found in media: MediumSteps.propagate weighed those
+                c[paths.medium >= 0] = 0.0
             self._add(L, idx, self._clamp(c, direct), tally, depth)
         missed = hit.prim < 0
         if lights.sees_escaped and missed.any():
@@ -391,8 +393,9 @@ class PathTracer:
         keep = np.flatnonzero(survive)
         wi = take(bs.wi, keep)
         if self.media is not None:
-            label = bs.label[keep]
-            medium = after_crossing(self.media.media, paths.medium[keep], paths.mat[keep],
+            label, mat = bs.label[keep], paths.mat[keep]
+            mis_pdf, mis_off = paths.mis_pdf[keep], paths.mis_off[keep]
+            medium = after_crossing(self.media.media, paths.medium[keep], mat,
                                     take(self.media.ng_raw, paths.prim[keep]), take(paths.d, keep),
                                     (label == LABEL_TRANSMIT) | (label == LABEL_TRANSPARENT))
         paths = paths.leave(keep, wi, take(beta, keep), reflects)
@@ -403,6 +406,11 @@ class PathTracer:
         # ("light" alone); no_mis makes it weigh 1 (after delta bounces, or "bsdf" alone).
         paths.pdf_prev = (q * bs.pdf)[keep] if self.strategy.bsdf_hits else np.zeros(len(keep))
         paths.no_mis = bs.delta[keep] | (not self.strategy.nee)
+        if self.media is not None:  # light samples cross volume-only boundaries: passing one keeps the MIS state
+            passes = (label == LABEL_TRANSPARENT) & self.media.media.passable[mat]
+            if passes.any():
+                paths.pdf_prev = np.where(passes, mis_pdf, paths.pdf_prev)
+                paths.no_mis = np.where(passes, mis_off, paths.no_mis)
         return paths
 
     def _clamp(self, c: np.ndarray, direct, rows=None) -> np.ndarray:

@@ -57,17 +57,20 @@ class PathState:
              it finds); no_mis (N,) bool: that emission counts with weight 1
     specular (N,) bool: every vertex so far was specular (caustic paths; None: not kept)
     medium   (N,) int64: the material whose medium the path is in (-1 none), volume_bounces
-             (N,) its scattering events in media (both None without media: integrators/media.py)
+             (N,) its scattering events in media (both None without media: integrators/media.py);
+             mis_pdf, mis_off (N,): the ray's pdf_prev and no_mis kept to the vertex, where a
+             pass through a volume-only boundary hands them on (None without media)
     depth    bounces so far (rays traced - 1): an int, or (N,) int64 with regeneration
     bounces  Bounces (the light-path limits' counts) or None
     """
 
     __slots__ = ("idx", "o64", "o32", "d", "tmax", "skip", "prim", "mat", "p", "ng", "ns", "bary",
-                 "beta", "pdf_prev", "no_mis", "specular", "medium", "volume_bounces", "depth", "bounces")
+                 "beta", "pdf_prev", "no_mis", "specular", "medium", "volume_bounces", "mis_pdf", "mis_off",
+                 "depth", "bounces")
     # Per-path arrays, compacted and joined alike (depth and bounces are handled apart), and
     # those a path carries from its ray to the vertex it arrives at.
     _ARRAYS = __slots__[:-2]
-    _CARRIED = ("idx", "d", "beta", "specular", "medium", "volume_bounces")
+    _CARRIED = ("idx", "d", "beta", "specular", "medium", "volume_bounces", "mis_pdf", "mis_off")
     _SPENT = ("o64", "o32", "tmax", "skip", "prim", "mat", "p", "ng", "ns", "bary", "pdf_prev", "no_mis")
 
     def __init__(self, idx: np.ndarray, depth=0, **fields):
