@@ -11,7 +11,8 @@
 - Agreement with Cycles (region t-test) on a cube of Volume Scatter lit by a sun over a
   floor, a sphere of Volume Absorption in front of a bright background, the same under glass,
   the cube as an emitting Principled Volume with four volume bounces, and the cube lit by
-  an area light inside it (light and phase samples combined by MIS across its boundary).
+  an area light inside it (light and phase samples combined by MIS across its boundary),
+  seen by the camera through the fog or hidden from camera rays.
 """
 import numpy as np
 import pytest
@@ -111,7 +112,8 @@ def test_single_scattering_is_darker_than_all_orders():
 # -- Blender: export and Cycles ---------------------------------------------------------------
 SEEDS = 8
 SAMPLES = 32
-CYCLES_SCENES = ("scatter_cube", "absorbing_sphere", "glass_of_ink", "principled_fog", "area_light_in_fog")
+CYCLES_SCENES = ("scatter_cube", "absorbing_sphere", "glass_of_ink", "principled_fog", "area_light_in_fog",
+                 "hidden_area_light_in_fog")
 
 
 @pytest.fixture(scope="module")

@@ -103,17 +103,20 @@ def principled_fog(size: int = 24):
     return sc
 
 
-def area_light_in_fog(size: int = 24):
-    """scatter_cube lit by an area light inside the cube instead of the sun: light samples
-    and phase samples that both reach it, across the cube's boundary."""
+def area_light_in_fog(size: int = 24, visible: bool = True):
+    """scatter_cube lit by an area light inside the cube instead of the sun, facing the
+    camera (seen through the fog where `visible`): light samples and phase samples that both
+    reach it, across the cube's boundary."""
     sc = scatter_cube(size)
     bpy.data.objects.remove(bpy.data.objects["Sun"])
     area = bpy.data.objects.new("Area", bpy.data.lights.new("Area", "AREA"))
     area.data.energy, area.data.size = 30.0, 0.6
-    area.location, area.rotation_euler = (0.2, 0.0, 1.3), (math.radians(80.0), 0.0, 0.0)
+    area.location, area.rotation_euler = (0.2, 0.0, 1.3), (math.radians(-80.0), 0.0, 0.0)  # facing the camera
+    area.visible_camera = visible
     sc.collection.objects.link(area)
     return sc
 
 
 SCENES = {"scatter_cube": scatter_cube, "absorbing_sphere": absorbing_sphere, "glass_of_ink": glass_of_ink,
-          "principled_fog": principled_fog, "area_light_in_fog": area_light_in_fog}
+          "principled_fog": principled_fog, "area_light_in_fog": area_light_in_fog,
+          "hidden_area_light_in_fog": lambda size=24: area_light_in_fog(size, visible=False)}
