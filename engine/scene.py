@@ -207,6 +207,10 @@ class Materials:
     bool: texels are sRGB-encoded bytes / 255, decoded after interpolation (as Cycles);
     image_names.
 
+    Volumes (engine/volumes.py): volume_sigma_s, volume_sigma_a, volume_emission (M,3) the
+    homogeneous medium a closed mesh of the material bounds (all zero: none), per unit length;
+    volume_g (M,) its Henyey-Greenstein mean cosine. Rows take them from a `volume` dict.
+
     graphs: per material, its shader node graph (engine/nodes/graph.py) where parameters vary
     over the surface (textures, procedurals, Fresnel mixes), else None; empty: none at all.
     Such a material's lobes are its graph's closures in order (engine/nodes/material.py), with
@@ -251,6 +255,10 @@ class Materials:
     image_names: tuple = ()
     graphs: tuple = ()
     holdout: np.ndarray = None
+    volume_sigma_s: np.ndarray = None
+    volume_sigma_a: np.ndarray = None
+    volume_emission: np.ndarray = None
+    volume_g: np.ndarray = None
 
     def __post_init__(self):
         if self.holdout is None:
@@ -291,6 +299,7 @@ class Materials:
                 lobes.append(lobe)
         col = lambda k, dtype: np.array([lb[k] for lb in lobes], dtype)
         vec = lambda k: np.array([lb[k] for lb in lobes], np.float64).reshape(-1, 3)
+        vol = lambda k: np.array([r.get("volume", {}).get(k, (0.0, 0.0, 0.0)) for r in rows], np.float64).reshape(-1, 3)
         slots = [dict(_SLOT_DEFAULTS, **s) for s in slots]
         texels, sizes, offsets, offset = [], [], [], 0
         for im in images:
@@ -338,6 +347,8 @@ class Materials:
             image_names=tuple(im.get("name", f"image{i}") for i, im in enumerate(images)),
             graphs=tuple(r.get("graph") for r in rows) if any(r.get("graph") is not None for r in rows) else (),
             holdout=np.array([r.get("holdout", 0.0) for r in rows], np.float64),
+            volume_sigma_s=vol("sigma_s"), volume_sigma_a=vol("sigma_a"), volume_emission=vol("emission"),
+            volume_g=np.array([r.get("volume", {}).get("g", 0.0) for r in rows], np.float64),
         )
         mats.check()
         return mats

@@ -35,7 +35,7 @@ from .runner import Runner
 from .scene import Scene, recentred
 from . import tracer as tracer_mod
 from .tracer import Tracer
-from .validation import has_light, path_only_warnings, validate
+from .validation import has_light, path_only_warnings, validate, volume_warnings
 
 
 @dataclass
@@ -103,7 +103,7 @@ class RenderSession:
             self.warnings.append(f"The noise target does not apply to the '{scene.settings.integrator}' integrator "
                                  "(its passes are not independent samples of one image); it is ignored.")
             scene = scene.replace(settings=scene.settings.replace(noise_target=0.0))
-        self.warnings += path_only_warnings(scene)
+        self.warnings += path_only_warnings(scene) + volume_warnings(scene)
         if scene.settings.adaptive and not integrators.REGISTRY[scene.settings.integrator].adaptive:
             self.warnings.append(f"Adaptive sampling does not apply to the '{scene.settings.integrator}' integrator "
                                  "(every pass covers every pixel); it samples uniformly.")

@@ -233,6 +233,10 @@ GROUPS = (
         Int("transparent_bounces", 64, "Transparent",
             "Most passes through transparent surfaces (as Cycles'); they do not count toward Max Bounces",
             min=0, max=1024, flag="--transparent-bounces", honoured_by=PATH),
+        Int("volume_bounces", 1, "Volume",
+            "Most scattering events in volumes on a path; past it a path is only attenuated "
+            "(1 = single scattering: Cycles' Volume bounces + 1, Cycles' default)",
+            min=1, max=1024, flag="--volume-bounces", honoured_by=PATH),
         Float("clamp_direct", 0.0, "Direct Light",
               "Scale down direct-light samples whose mean RGB exceeds this (0 = off; "
               "biased, as Cycles' clamping)",

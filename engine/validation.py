@@ -10,12 +10,14 @@ import os
 
 import numpy as np
 
+from . import passes as passes_mod
 from . import settings as declared
 from .errors import EmberError
 from .integrators import REGISTRY, choices, honours
 from .integrators.path import ITEM_BATCHES
 from .passes import NAMES as PASS_NAMES
 from .scene import RAY_ALL, RAY_CAMERA, Scene
+from .volumes import Media
 
 
 def validate(scene: Scene) -> None:
@@ -268,7 +270,8 @@ def check_frame_memory(width: int, height: int, available: int | None = None) ->
 
 def has_light(scene: Scene) -> bool:
     world = scene.world
-    return (len(scene.lights) > 0 or bool(np.any(scene.materials.emission != 0))
+    glowing_media = scene.materials.volume_emission is not None and bool(np.any(scene.materials.volume_emission != 0))
+    return (len(scene.lights) > 0 or bool(np.any(scene.materials.emission != 0)) or glowing_media
             or bool(np.max(np.abs(world.color)) > 0
                     and (getattr(world, "image", None) is None or np.max(np.abs(world.image)) > 0)))
 
@@ -317,3 +320,17 @@ def path_only_warnings(scene) -> list[str]:
         out.append(f"The '{s.integrator}' integrator ignores ray visibility and holdouts (Path Tracing only); "
                    "every object is seen by every ray (lights and the world keep their camera visibility).")
     return out
+
+
+def volume_warnings(scene) -> list[str]:
+    """Where a render leaves the materials' volumes out: integrators other than the path
+    tracer, and the path tracer with light passes (those count per bounce of a batch at one
+    depth, which paths scattering in media leave)."""
+    if Media.of(scene.materials) is None:
+        return []
+    s = scene.settings
+    if s.integrator != "path":
+        return [f"The '{s.integrator}' integrator renders without volumes (volume shaders: Path Tracing only)."]
+    if any(n in passes_mod.LIGHT for n in passes_mod.needed(s.passes)):
+        return ["Volumes are left out of renders with light passes (Direct / Indirect / Color) in this version."]
+    return []

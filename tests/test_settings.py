@@ -122,7 +122,8 @@ def test_validation_checks_every_range_and_choice():
 def test_path_only_warnings_follow_honoured_by():
     from ember.engine.validation import PATH_ONLY, path_only_warnings
     assert {s.name for s in PATH_ONLY} == {"diffuse_bounces", "glossy_bounces", "transmission_bounces",
-                                           "transparent_bounces", "caustics_reflective", "caustics_refractive",
+                                           "transparent_bounces", "volume_bounces", "caustics_reflective",
+                                           "caustics_refractive",
                                            "clamp_direct", "clamp_indirect", "filter_glossy"}
     scene = furnace_box(integrator="photon", clamp_direct=2.0, glossy_bounces=3)
     (warning,) = path_only_warnings(scene)

@@ -19,16 +19,18 @@ README = ROOT / "README.md"
 DOC = ROOT / "docs" / "nodes.md"
 START, END = "<!-- node-table:start -->", "<!-- node-table:end -->"
 
+VOLUME_NOTE = ("on a Material Output's Volume: a homogeneous medium in the path tracer (constant inputs; "
+               "engine/blender/export_volume.py), not a node program")
 # Node kinds Ember does not build, and why.
 NOT_BUILT = {
     "ShaderNodeOutputAOV": "AOV passes are not written yet",
     "ShaderNodeScript": "OSL scripts: no OSL compiler in Ember",
     "ShaderNodeShaderToRGB": "EEVEE only; Cycles does not support it either",
     "ShaderNodeUVAlongStroke": "Freestyle line styles only",
-    "ShaderNodeVolumeAbsorption": "volumes are not rendered yet",
-    "ShaderNodeVolumeCoefficients": "volumes are not rendered yet",
-    "ShaderNodeVolumePrincipled": "volumes are not rendered yet",
-    "ShaderNodeVolumeScatter": "volumes are not rendered yet",
+    "ShaderNodeVolumeAbsorption": VOLUME_NOTE,
+    "ShaderNodeVolumeCoefficients": VOLUME_NOTE,
+    "ShaderNodeVolumePrincipled": VOLUME_NOTE,
+    "ShaderNodeVolumeScatter": VOLUME_NOTE,
 }
 # Built nodes whose Cycles behaviour needs saying.
 NOTES = {

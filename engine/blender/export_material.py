@@ -49,6 +49,8 @@ from ..nodes.hits import provides
 from ..nodes.material import compiled_material, with_phong
 from ..textures import LUMINANCE
 from .export_nodes import export_graph
+from .export_volume import medium_of
+from .sockets import follow_link, follow_socket  # noqa: F401 (others import them from here)
 
 GREY = (0.8, 0.8, 0.8)
 DEFAULT_NAME = "default"
@@ -69,28 +71,6 @@ def find_output(tree, bl_idname: str):
         if getattr(n, "is_active_output", False):
             return n
     return outs[0] if outs else None
-
-
-def follow_socket(socket):
-    """(node, output socket) feeding `socket` through reroutes, or (None, None) if
-    unconnected or muted."""
-    seen = 0
-    while socket is not None and socket.is_linked and seen < 64:
-        link = socket.links[0]
-        if getattr(link, "is_muted", False) or not getattr(link, "is_valid", True):
-            return None, None
-        node = link.from_node
-        if node.bl_idname == "NodeReroute":
-            socket = node.inputs[0] if node.inputs else None
-            seen += 1
-            continue
-        return node, link.from_socket
-    return None, None
-
-
-def follow_link(socket):
-    """The node feeding `socket` (through reroutes), or None if unconnected or muted."""
-    return follow_socket(socket)[0]
 
 
 def rgb(socket) -> tuple:
@@ -567,12 +547,25 @@ def material_row(mat, textures: _Textures, warn, phong: bool = False) -> dict:
         return dict(kind=MAT_DIFFUSE, base_color=GREY, emission=(0, 0, 0), name=name)
     surface = follow_link(out.inputs["Surface"])
     volume_socket = out.inputs.get("Volume")
-    if volume_socket is not None and follow_link(volume_socket) is not None:
-        _group(warn, "Volume shaders are not supported and are ignored (a material with only a "
-                     "volume renders as a transparent surface)", name)
-        if surface is None:  # Cycles: a volume-only material has a transparent boundary
-            return dict(kind=MAT_NODES, base_color=(0.0, 0.0, 0.0), emission=(0, 0, 0), name=name,
-                        lobes=[dict(kind=LOBE_TRANSPARENT, weight=(1.0, 1.0, 1.0), color=(1.0, 1.0, 1.0))])
+    if volume_socket is None or follow_link(volume_socket) is None:
+        return _surface_row(mat, out, surface, textures, warn, phong)
+    if surface is None:  # Cycles: a volume-only material has a transparent boundary
+        row = dict(kind=MAT_NODES, base_color=(0.0, 0.0, 0.0), emission=(0, 0, 0), name=name,
+                   lobes=[dict(kind=LOBE_TRANSPARENT, weight=(1.0, 1.0, 1.0), color=(1.0, 1.0, 1.0))])
+    else:
+        row = _surface_row(mat, out, surface, textures, warn, phong)
+    notes = []
+    medium = medium_of(volume_socket, notes.append)
+    if notes:
+        warn(f"Material '{name}': volume approximated " + "; ".join(notes) + ".")
+    if medium is not None:
+        row["volume"] = medium.as_row()
+    return row
+
+
+def _surface_row(mat, out, surface, textures: _Textures, warn, phong: bool) -> dict:
+    """The Materials row of the material's Surface shader (see material_row)."""
+    name = mat.name
     conv = _Converter(mat, textures, phong)
     conv.shader(surface, np.ones(3))
     displaced = follow_link(out.inputs["Displacement"]) is not None

@@ -17,6 +17,7 @@ from .. import passes as passes_mod
 from ..integrators import REGISTRY
 from ..scene import Scene
 from ..validation import path_only_warnings
+from ..volumes import Media
 from .analysis import SceneAnalysis, analyse
 from .rule import Choice, choose
 
@@ -55,6 +56,8 @@ def _path_only(scene: Scene) -> tuple:
         out.append("negative light")
     if any(n in passes_mod.LIGHT for n in passes_mod.needed(scene.settings.passes)):
         out.append("light passes")
+    if Media.of(scene.materials) is not None:
+        out.append("volumes")
     probe = scene.replace(settings=scene.settings.replace(integrator="photon"))
     for w in path_only_warnings(probe):
         out.append("ray visibility or holdouts" if "visibility" in w else "per-kind bounce limits or clamping")

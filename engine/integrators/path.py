@@ -26,7 +26,7 @@ from ..vec import dot, gatherer, max3, normalize, scale, take
 
 from .. import camera as camera_mod
 from ..accel import Accel, offset_origin
-from ..bsdf.closure import LABEL_TRANSPARENT
+from ..bsdf.closure import LABEL_TRANSMIT, LABEL_TRANSPARENT
 from ..bsdf.fast_path import make_closure, plain_lambert_albedo
 from ..nodes import light_path as lp
 from ..nodes.hits import COUNT_FIELDS, RayState, camera_differentials, camera_footprint
@@ -38,8 +38,10 @@ from ..rng import Sampler
 from ..scene import RAY_CAMERA, RAY_SHADOW, Scene
 from .. import passes as passes_mod
 from ..visibility import RayVisibility
+from ..volumes import Media
 from .base import Integrator, Stage
 from .light_passes import LightTally
+from .media import MediumSteps, after_crossing
 from .path_options import CAMERA_PATHS, Clamp, ClosureOptions, Gather, LightPaths, Strategy
 from .path_state import PathState, rows_of
 from .shadows import ShadowRays
@@ -68,8 +70,18 @@ def _accumulate(L: np.ndarray, rows: np.ndarray, c: np.ndarray) -> None:
         L[k][rows] += c[:, k]
 
 
+def _light_group(depth):
+    return 1 + _GROUPS * depth + _LIGHT
+
+
+def _bsdf_group(depth):
+    return 1 + _GROUPS * depth + _BSDF
+
+
 class PathTracer:
-    def __init__(self, scene: Scene, accel: Accel, lights: LightSet):
+    def __init__(self, scene: Scene, accel: Accel, lights: LightSet, media: bool = False):
+        """media: render the materials' volumes (the path integrator's camera paths; other
+        integrators leave them out, with a warning from validation)."""
         self.scene, self.accel, self.lights = scene, accel, lights
         self.mesh, self.materials = scene.mesh, scene.materials
         emissive = np.any(scene.materials.emission != 0, axis=1)  # per material; negative emission too
@@ -100,6 +112,8 @@ class PathTracer:
         self.shader_rays = None
         if "ray_queries" in reads:
             self.shader_rays = SceneRays(self.visibility.views.get(RAY_SHADOW, accel), accel, scene.mesh)
+        table = Media.of(scene.materials) if media else None
+        self.media = None if table is None else MediumSteps(self, table, _light_group, _bsdf_group)
 
     def render(self, sampler, px: np.ndarray, py: np.ndarray, stop=None, tally=None) -> np.ndarray:
         """Radiance estimates (N,3), one path per pixel (px, py). Raises Cancelled if stop is set.
@@ -128,7 +142,7 @@ class PathTracer:
         L = np.zeros((3, len(paths) if refill is None else refill.n))  # channel-major: see _accumulate
         max_depth = self.light_paths.max_depth if gather.max_depth is None else gather.max_depth
         rays = self.light_paths.rays_at_most(max_depth)
-        paths = self._start(paths, gather, max_depth, per_path=refill is not None)
+        paths = self._start(paths, gather, max_depth, per_path=refill is not None or self.media is not None)
         t_first = gather.t_first  # the first rays' only
         while True:
             if stop is not None and stop.is_set():
@@ -138,10 +152,13 @@ class PathTracer:
                 break
             hit = paths.intersect(self.visibility, paths.bounces.ray, t_first)  # one Embree call
             t_first = None
+            scattered = None  # paths that collide in a medium, on their next rays
+            if self.media is not None:
+                paths, hit, scattered = self.media.propagate(L, sampler, paths, hit)
             self._emission(L, paths, hit, gather, tally, sampler)  # found by the rays, weighted by MIS
             paths = paths.arrive(hit, np.flatnonzero(hit.prim >= 0), self.mesh.material, self.needs_bary)
             paths = self._terminate(paths)  # bounce limits, holdouts
-            if len(paths) == 0 and not (refill is not None and refill.left > 0):
+            if len(paths) == 0 and not (refill is not None and refill.left > 0) and scattered is None:
                 break
             bsdf = self._closure(paths, tally, sampler)
             q = self._survival(paths, bsdf)  # Russian roulette's, fixed before sampling
@@ -149,6 +166,8 @@ class PathTracer:
                 paths.specular &= ~gather.caustic_ends[paths.mat]
             self._next_event(L, sampler, paths, bsdf, q, tally)  # one light sample
             paths = self._scatter(sampler, paths, bsdf, q, tally)  # one BSDF sample goes on
+            if scattered is not None:
+                paths = paths.join(scattered)
             if np.ndim(paths.depth) == 0:  # a path traces at most `rays` rays
                 if paths.depth >= rays:
                     break
@@ -171,6 +190,8 @@ class PathTracer:
         paths.bounces = self.light_paths.start(n, max_depth, per_path)
         if self.track:
             self._track(paths, gather)
+        if self.media is not None:
+            self.media.start(paths)
         return paths
 
     def _track(self, paths: PathState, gather: Gather) -> None:
@@ -229,6 +250,8 @@ class PathTracer:
                                                    receiver=paths.receiver)
             if lit is not None:
                 c[~lit] = 0.0
+            if paths.medium is not None:  # found in media: MediumSteps.propagate weighed those
+                c[paths.medium >= 0] = 0.0
             self._add(L, idx, self._clamp(c, direct), tally, depth)
         missed = hit.prim < 0
         if lights.sees_escaped and missed.any():
@@ -352,19 +375,29 @@ class PathTracer:
         rows = active[test]
         n_off = take(paths.ng, rows) if reflects and self.shadows.geometry_offset is None else \
             towards(take(paths.ng, rows), take(ls.wi, test))
-        passed = None if b.counts is None or not self.shadows.any_transparent else b.counts[rows, LABEL_TRANSPARENT]
-        if self.shadows.geometry_offset is None:
-            o, skip = offset_origin(take(paths.p, rows), n_off), paths.prim[rows]
-        else:  # the terminator's Geometry Offset
-            o, skip = self.shadows.origin(take(paths.p, rows), n_off, paths.prim[rows],
-                                          None if paths.bary is None else take(paths.bary, rows),
-                                          take(getattr(bsdf, "n_smooth", bsdf.ns), rows), take(paths.ng, rows),
-                                          take(ls.wi, test))
-        lit, T = self.shadows.trace(o, take(ls.target, test), skip, ls.target_prim[test], passed,
-                                    None if ls.light is None else ls.light[test])
+        if self.media is None:
+            passed = None if b.counts is None or not self.shadows.any_transparent else b.counts[rows, LABEL_TRANSPARENT]
+            if self.shadows.geometry_offset is None:
+                o, skip = offset_origin(take(paths.p, rows), n_off), paths.prim[rows]
+            else:  # the terminator's Geometry Offset
+                o, skip = self.shadows.origin(take(paths.p, rows), n_off, paths.prim[rows],
+                                              None if paths.bary is None else take(paths.bary, rows),
+                                              take(getattr(bsdf, "n_smooth", bsdf.ns), rows), take(paths.ng, rows),
+                                              take(ls.wi, test))
+            lit, T = self.shadows.trace(o, take(ls.target, test), skip, ls.target_prim[test], passed,
+                                        None if ls.light is None else ls.light[test])
+            c = take(contrib, test[lit])
+            c = c if T is None else c * T
+        else:  # through media: transmittance, and the medium on the light's side of the surface
+            medium = after_crossing(self.media.media, paths.medium[rows], paths.mat[rows],
+                                    take(self.media.ng_raw, paths.prim[rows]), take(paths.d, rows),
+                                    dot(take(ls.wi, test), take(bsdf.ns, rows)) < 0)
+            T = self.media.transmittance(take(paths.p, rows), n_off, take(ls.target, test), paths.prim[rows],
+                                         ls.target_prim[test], medium)
+            lit = np.flatnonzero(np.any(T != 0, axis=1))
+            c = take(contrib, test[lit]) * T[lit]
         rows = rows[lit]
-        c = take(contrib, test[lit])
-        c = self._clamp(c if T is None else c * T, b.total == 0, rows)
+        c = self._clamp(c, b.total == 0, rows)
         _accumulate(L, paths.idx[rows], c)
         if tally:
             f_cls = bsdf.eval_by_class(take(ls.wi, test[lit]), rows) if paths.depth == 0 else None
@@ -392,7 +425,15 @@ class PathTracer:
         survive &= max3(beta) > 0
         keep = np.flatnonzero(survive)
         vertex = paths
+        if self.media is not None:
+            label, mat = bs.label[keep], paths.mat[keep]
+            mis_pdf, mis_off = paths.mis_pdf[keep], paths.mis_off[keep]
+            medium = after_crossing(self.media.media, paths.medium[keep], mat,
+                                    take(self.media.ng_raw, paths.prim[keep]), take(paths.d, keep),
+                                    (label == LABEL_TRANSMIT) | (label == LABEL_TRANSPARENT))
         paths = vertex.leave(keep, take(bs.wi, keep), take(beta, keep), reflects)
+        if self.media is not None:
+            paths.medium = medium
         paths.bounces = paths.bounces.count(bs, keep, self.light_paths.per_label)
         # Strategy switches: pdf_prev 0 makes emission found after a non-delta bounce weigh 0
         # ("light" alone); no_mis makes it weigh 1 (after delta bounces, or "bsdf" alone).
@@ -406,6 +447,11 @@ class PathTracer:
         if self.lights.light_linked:  # light linking: what the ray may find is its origin's
             receiver = self.lights.receivers(vertex.prim[keep])
             paths.receiver = receiver if vertex.t_mis is None else np.where(through, vertex.receiver[keep], receiver)
+        if self.media is not None and vertex.t_mis is None:  # passing a volume-only boundary keeps the MIS state
+            passes = (label == LABEL_TRANSPARENT) & self.media.media.passable[mat]
+            if passes.any():
+                paths.pdf_prev = np.where(passes, mis_pdf, paths.pdf_prev)
+                paths.no_mis = np.where(passes, mis_off, paths.no_mis)
         return paths
 
     def _clamp(self, c: np.ndarray, direct, rows=None) -> np.ndarray:
@@ -470,8 +516,10 @@ class PathIntegrator(Integrator):
 
     def build(self, ctx) -> None:
         super().build(ctx)
-        self.tracer = PathTracer(ctx.scene, ctx.accel, ctx.lights)
         self.tallied = self.light_passes_of(ctx.scene.settings)
+        # Light passes count per bounce of a batch at one depth: volumes are left out there
+        # (validation.volume_warnings says so).
+        self.tracer = PathTracer(ctx.scene, ctx.accel, ctx.lights, media=not self.tallied)
 
     def run(self, stage: Stage, item: int, stop=None) -> np.ndarray:
         layout, s = self.layout, self.scene.settings

@@ -62,16 +62,21 @@ class PathState:
     receiver (N,) int64 or None (no light linking): the receiver set of that vertex (light
              linking: the lights the ray may find; -1 for camera rays: all)
     specular (N,) bool: every vertex so far was specular (caustic paths; None: not kept)
+    medium   (N,) int64: the material whose medium the path is in (-1 none), volume_bounces
+             (N,) its scattering events in media (both None without media: integrators/media.py);
+             mis_pdf, mis_off (N,): the ray's pdf_prev and no_mis kept to the vertex, where a
+             pass through a volume-only boundary hands them on (None without media)
     depth    bounces so far (rays traced - 1): an int, or (N,) int64 with regeneration
     bounces  Bounces (the light-path limits' counts) or None
     """
 
     __slots__ = ("idx", "o64", "o32", "d", "tmax", "skip", "prim", "mat", "p", "ng", "ns", "bary",
-                 "beta", "pdf_prev", "no_mis", "t_mis", "receiver", "specular", "depth", "bounces")
+                 "beta", "pdf_prev", "no_mis", "t_mis", "receiver", "specular", "medium", "volume_bounces",
+                 "mis_pdf", "mis_off", "depth", "bounces")
     # Per-path arrays, compacted and joined alike (depth and bounces are handled apart), and
     # those a path carries from its ray to the vertex it arrives at.
     _ARRAYS = __slots__[:-2]
-    _CARRIED = ("idx", "d", "beta", "specular")
+    _CARRIED = ("idx", "d", "beta", "specular", "medium", "volume_bounces", "mis_pdf", "mis_off")
     _SPENT = ("o64", "o32", "tmax", "skip", "prim", "mat", "p", "ng", "ns", "bary", "pdf_prev", "no_mis", "t_mis",
               "receiver")
     _MIS = ("pdf_prev", "no_mis", "t_mis", "receiver")  # carried to the vertex with t_mis, else spent
@@ -175,6 +180,8 @@ class PathState:
         out.o32 = offset_origin(out.o64, n if reflects else towards(n, wi))
         if self.specular is not None:
             out.specular = self.specular[rows]
+        if self.medium is not None:  # the caller changes it where the path crosses a boundary
+            out.medium, out.volume_bounces = self.medium[rows], self.volume_bounces[rows]
         if self.bounces is not None:
             out.bounces = self.bounces.take(rows)
         return out

@@ -440,21 +440,28 @@ class LightSet:
 
     def emission_along(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, pdf_bsdf: np.ndarray,
                        use_mis: np.ndarray, camera: np.ndarray, kind: np.ndarray = None,
-                       tmin: np.ndarray = None, receiver: np.ndarray = None) -> np.ndarray:
+                       tmin: np.ndarray = None, receiver: np.ndarray = None, through=None) -> np.ndarray:
         """Radiance (N,3) that rays o + t d, 0 < t < tmax, collect from the finite analytic lights
         they pass through, each weighted by the balance heuristic
         pdf_bsdf / (pdf_bsdf + pdf_light) where use_mis, else 1. camera (N,) bool: camera rays
         see only lights marked visible; kind (N,) RAY_* bit of each ray or None: rays see only
         lights visible to their kind; tmin (N,) or None: only lights past it (a ray gone on
         through transparent surfaces, o the vertex its MIS state is from); receiver (N,) or
-        None: the receiver sets of the rays' origins (light linking: only lights linked to them)."""
+        None: the receiver sets of the rays' origins (light linking: only lights linked to them);
+        through: t (N,) -> (N,3) factor on the radiance of a light met at distance t (a
+        medium's), or None."""
         total = np.zeros((len(o), 3))
         lights = self.lights
         for i in self.hittable.tolist():
             h = shapes.hit_analytic(int(lights.kind[i]), lights, i, o, d, tmax)
             if tmin is not None:
                 h = shapes.LightHit(h.hit & (h.t > tmin), h.gain, h.pdf, h.t)
-            self._add_weighted(total, i, h, pdf_bsdf, use_mis, camera, kind, o, d, receiver)
+            if through is None:
+                self._add_weighted(total, i, h, pdf_bsdf, use_mis, camera, kind, o, d, receiver)
+            else:
+                part = np.zeros_like(total)
+                self._add_weighted(part, i, h, pdf_bsdf, use_mis, camera, kind, o, d, receiver)
+                total += part * through(np.where(h.hit, h.t, 0.0))
         return total
 
     def escaped(self, d: np.ndarray, pdf_bsdf: np.ndarray, use_mis: np.ndarray, camera: np.ndarray,
