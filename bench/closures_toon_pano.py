@@ -28,7 +28,8 @@ import _bootstrap  # noqa: E402
 
 _bootstrap.load_ember()
 from metrics import EPS  # noqa: E402
-from cycles_scenes import addon, rgba_cycles, rgba_ember  # noqa: E402
+from cycles_renders import rgba_cycles, rgba_ember  # noqa: E402
+from cycles_scenes import addon  # noqa: E402
 import test_holdout  # noqa: E402
 import test_panorama  # noqa: E402
 import test_toon_translucent  # noqa: E402

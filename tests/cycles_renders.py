@@ -19,8 +19,8 @@ class _Film:
         self.film = progress.film
 
 
-def ember_image(sc, integrator: str, samples: int, seed: int) -> np.ndarray:
-    """(H, W, 3) the film's mean of an F12 render with Ember."""
+def ember_film(sc, integrator: str, samples: int, seed: int):
+    """The film of an F12 render with Ember."""
     sc.render.engine = "EMBER"
     sc.ember.integrator, sc.ember.samples, sc.ember.seed = integrator, samples, seed
     grab = _Film()
@@ -29,21 +29,39 @@ def ember_image(sc, integrator: str, samples: int, seed: int) -> np.ndarray:
         bpy.ops.render.render()
     finally:
         final.listeners.remove(grab)
-    return grab.film.mean().reshape(sc.render.resolution_y, sc.render.resolution_x, 3)
+    return grab.film
 
 
-def cycles_image(sc, samples: int, seed: int, path) -> np.ndarray:
-    """(H, W, 3) Cycles' render, through an EXR at `path` (top row first)."""
+def ember_image(sc, integrator: str, samples: int, seed: int) -> np.ndarray:
+    """(H, W, 3) the film's mean of an F12 render with Ember."""
+    film = ember_film(sc, integrator, samples, seed)
+    return film.mean().reshape(sc.render.resolution_y, sc.render.resolution_x, 3)
+
+
+def rgba_ember(sc, samples: int, seed: int, integrator: str = "PATH") -> np.ndarray:
+    """(H, W, 4) Ember's F12 render with its film's alpha."""
+    film = ember_film(sc, integrator, samples, seed)
+    return film.image().reshape(sc.render.resolution_y, sc.render.resolution_x, 4)
+
+
+def rgba_cycles(sc, samples: int, seed: int, path) -> np.ndarray:
+    """(H, W, 4) Cycles' render with its alpha, through an RGBA EXR at `path` (top row first)."""
     sc.render.engine = "CYCLES"
     sc.cycles.samples, sc.cycles.seed = samples, seed
     sc.render.filepath = str(path)
     sc.render.image_settings.file_format = "OPEN_EXR"
+    sc.render.image_settings.color_mode = "RGBA"
     bpy.ops.render.render(write_still=True)
     img = bpy.data.images.load(str(path))
     h, w = sc.render.resolution_y, sc.render.resolution_x
-    pixels = np.array(img.pixels[:]).reshape(h, w, 4)[::-1, :, :3]
+    out = np.array(img.pixels[:]).reshape(h, w, 4)[::-1]
     bpy.data.images.remove(img)
-    return pixels
+    return out
+
+
+def cycles_image(sc, samples: int, seed: int, path) -> np.ndarray:
+    """(H, W, 3) Cycles' render, through an EXR at `path` (top row first)."""
+    return rgba_cycles(sc, samples, seed, path)[:, :, :3]
 
 
 def region_means(images) -> np.ndarray:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 
 import bpy
-import numpy as np
 
 import ember
 
@@ -52,8 +51,8 @@ def addon():
 
 
 def diffuse_floor(size=8.0, color=(0.8, 0.8, 0.8)):
-    """A plane at z = 0 with a Diffuse BSDF of `color` (given explicitly: Ember's grey for an
-    object without a material is a few per cent brighter than Cycles' default surface)."""
+    """A plane at z = 0 with a Diffuse BSDF of `color` (an object without a material would be a
+    default Principled BSDF)."""
     bpy.ops.mesh.primitive_plane_add(size=size)
     mat, nt, out = node_material("Floor")
     d = nt.nodes.new("ShaderNodeBsdfDiffuse")
@@ -61,33 +60,3 @@ def diffuse_floor(size=8.0, color=(0.8, 0.8, 0.8)):
     nt.links.new(d.outputs[0], out.inputs["Surface"])
     bpy.context.active_object.data.materials.append(mat)
     return bpy.context.active_object
-
-
-def rgba_cycles(sc, samples: int, seed: int, path) -> np.ndarray:
-    """(H, W, 4) Cycles' render with its alpha, through an RGBA EXR at `path` (top row first)."""
-    sc.render.engine = "CYCLES"
-    sc.cycles.samples, sc.cycles.seed = samples, seed
-    sc.render.filepath = str(path)
-    sc.render.image_settings.file_format = "OPEN_EXR"
-    sc.render.image_settings.color_mode = "RGBA"
-    bpy.ops.render.render(write_still=True)
-    img = bpy.data.images.load(str(path))
-    h, w = sc.render.resolution_y, sc.render.resolution_x
-    out = np.array(img.pixels[:]).reshape(h, w, 4)[::-1]
-    bpy.data.images.remove(img)
-    return out
-
-
-def rgba_ember(sc, samples: int, seed: int, integrator: str = "PATH") -> np.ndarray:
-    """(H, W, 4) Ember's F12 render with its film's alpha."""
-    from ember.engine.blender import final
-    from cycles_renders import _Film
-    sc.render.engine = "EMBER"
-    sc.ember.integrator, sc.ember.samples, sc.ember.seed = integrator, samples, seed
-    grab = _Film()
-    final.listeners.append(grab)
-    try:
-        bpy.ops.render.render()
-    finally:
-        final.listeners.remove(grab)
-    return grab.film.image().reshape(sc.render.resolution_y, sc.render.resolution_x, 4)

@@ -73,8 +73,8 @@ def holdout_scene(transparent: bool):
 @pytest.mark.blender
 @pytest.mark.parametrize("transparent", [False, True])
 def test_holdout_colour_and_alpha_as_cycles(transparent, tmp_path):
-    from cycles_renders import agree
-    from cycles_scenes import addon, rgba_cycles, rgba_ember
+    from cycles_renders import agree, rgba_cycles, rgba_ember
+    from cycles_scenes import addon
     with addon():
         sc = holdout_scene(transparent)
         cycles = [rgba_cycles(sc, 128, 100 + k, tmp_path / f"c{k}.exr") for k in range(4)]

@@ -17,6 +17,7 @@ bpy = pytest.importorskip("bpy")
 
 import ember  # noqa: E402
 from cycles_renders import agree, cycles_image, ember_image  # noqa: E402
+from cycles_scenes import camera, new_scene, node_material  # noqa: E402
 
 pytestmark = pytest.mark.blender
 SIZE = 32
@@ -33,35 +34,8 @@ def addon():
     ember.unregister()
 
 
-def _scene(world=(0.0, 0.0, 0.0)):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    sc = bpy.context.scene
-    w = bpy.data.worlds.new("World")
-    sc.world, w.color = w, world
-    sc.render.resolution_x = sc.render.resolution_y = SIZE
-    sc.render.resolution_percentage = 100
-    sc.cycles.pixel_filter_type = "BOX"
-    sc.cycles.device = "CPU"
-    sc.cycles.use_denoising = False
-    return sc
-
-
-def _nodes(name):
-    mat = bpy.data.materials.new(name)
-    nt = mat.node_tree
-    for n in list(nt.nodes):
-        if n.bl_idname != "ShaderNodeOutputMaterial":
-            nt.nodes.remove(n)
-    return mat, nt, nt.nodes["Material Output"]
-
-
-def _camera(sc, location, rotation):
-    bpy.ops.object.camera_add(location=location, rotation=rotation)
-    sc.camera = bpy.context.active_object
-
-
 def procedural_scene():
-    sc = _scene(world=(0.05, 0.05, 0.06))
+    sc = new_scene(SIZE, world=(0.05, 0.05, 0.06))
     bpy.ops.mesh.primitive_plane_add(size=6)
     floor = bpy.context.active_object
     mat = bpy.data.materials.new("Floor")
@@ -80,7 +54,7 @@ def procedural_scene():
     bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, location=(0, 0, 1), segments=48, ring_count=24)
     bpy.ops.object.shade_smooth()
     ball = bpy.context.active_object
-    mat, nt, out = _nodes("Ball")
+    mat, nt, out = node_material("Ball")
     d = nt.nodes.new("ShaderNodeBsdfDiffuse")
     d.inputs["Color"].default_value = (0.9, 0.8, 0.2, 1)
     g = nt.nodes.new("ShaderNodeBsdfAnisotropic")
@@ -97,22 +71,22 @@ def procedural_scene():
     bpy.ops.object.light_add(type="AREA", location=(2, -2, 4), rotation=(0.5, 0.4, 0.6))
     light = bpy.context.active_object
     light.data.energy, light.data.size = 800, 1.5
-    _camera(sc, (5, -5, 3.5), (1.15, 0, 0.785))
+    camera(sc, (5, -5, 3.5), (1.15, 0, 0.785))
     return sc
 
 
 def textured_emitter_scene(scale=1.0):
-    sc = _scene()
+    sc = new_scene(SIZE)
     bpy.ops.mesh.primitive_plane_add(size=6)
     floor = bpy.context.active_object
-    mat, nt, out = _nodes("Floor")
+    mat, nt, out = node_material("Floor")
     d = nt.nodes.new("ShaderNodeBsdfDiffuse")
     d.inputs["Color"].default_value = (0.7, 0.7, 0.7, 1)
     nt.links.new(d.outputs[0], out.inputs["Surface"])
     floor.data.materials.append(mat)
     bpy.ops.mesh.primitive_plane_add(size=3, location=(0, 0, 2.5), rotation=(0.35, 0, 0))
     lamp = bpy.context.active_object
-    mat, nt, out = _nodes("Lamp")
+    mat, nt, out = node_material("Lamp")
     em = nt.nodes.new("ShaderNodeEmission")
     em.inputs["Strength"].default_value = 6.0 * scale
     chk = nt.nodes.new("ShaderNodeTexChecker")
@@ -123,12 +97,12 @@ def textured_emitter_scene(scale=1.0):
     nt.links.new(em.outputs[0], out.inputs["Surface"])
     lamp.data.materials.append(mat)
     # Looking down at the floor only: its light is all from the textured emitter (no direct view).
-    _camera(sc, (0, -1.5, 6.0), (0.25, 0, 0))
+    camera(sc, (0, -1.5, 6.0), (0.25, 0, 0))
     return sc
 
 
 def _ao_material(name, distance, samples, color, inside=False, only_local=False):
-    mat, nt, out = _nodes(name)
+    mat, nt, out = node_material(name)
     ao = nt.nodes.new("ShaderNodeAmbientOcclusion")
     ao.samples, ao.inside, ao.only_local = samples, inside, only_local
     ao.inputs["Distance"].default_value = distance
@@ -143,7 +117,7 @@ def ambient_occlusion_scene():
     """Boxes on a floor, all emitting their AO: the floor's darkens toward the boxes, a box's
     own (Only Local, Inside) toward its faces' edges from the inside, and the second box's
     (Only Local, outside) not at all, though the floor and the first box are in reach."""
-    sc = _scene()
+    sc = new_scene(SIZE)
     bpy.ops.mesh.primitive_plane_add(size=6)
     bpy.context.active_object.data.materials.append(_ao_material("Floor", 0.8, 4, (0.9, 0.7, 0.4)))
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(-0.2, 0.0, 0.5), rotation=(0, 0, 0.3))
@@ -151,7 +125,7 @@ def ambient_occlusion_scene():
         _ao_material("Inside", 0.6, 4, (0.3, 0.8, 0.9), inside=True, only_local=True))
     bpy.ops.mesh.primitive_cube_add(size=0.8, location=(0.9, 0.4, 0.4))
     bpy.context.active_object.data.materials.append(_ao_material("Outside", 1.5, 2, (1.0, 1.0, 1.0), only_local=True))
-    _camera(sc, (3.2, -3.2, 3.0), (0.95, 0, 0.785))
+    camera(sc, (3.2, -3.2, 3.0), (0.95, 0, 0.785))
     return sc
 
 

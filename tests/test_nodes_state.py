@@ -24,6 +24,7 @@ bpy = pytest.importorskip("bpy")
 
 import ember  # noqa: E402
 import node_bake  # noqa: E402
+from cycles_scenes import new_scene, node_material  # noqa: E402
 from ember.engine.blender.export import export_scene  # noqa: E402
 from ember.engine.nodes.hits import RayState, SurfaceHits  # noqa: E402
 from ember.engine.nodes.material import MaterialPrograms  # noqa: E402
@@ -248,31 +249,9 @@ CYCLES_SAMPLES = 256  # per seed
 TOL = 0.01
 
 
-def _render_scene(world=(0.04, 0.04, 0.05)):
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    sc = bpy.context.scene
-    w = bpy.data.worlds.new("World")
-    sc.world, w.color = w, world
-    sc.render.resolution_x = sc.render.resolution_y = SIZE
-    sc.render.resolution_percentage = 100
-    sc.cycles.pixel_filter_type = "BOX"
-    sc.cycles.device = "CPU"
-    sc.cycles.use_denoising = False
-    return sc
-
-
-def _material(name):
-    mat = bpy.data.materials.new(name)
-    nt = mat.node_tree
-    for n in list(nt.nodes):
-        if n.bl_idname != "ShaderNodeOutputMaterial":
-            nt.nodes.remove(n)
-    return mat, nt, nt.nodes["Material Output"]
-
-
 def _diffuse(name, color=None):
     """A Diffuse BSDF material; color: a function (node tree) -> the socket its Color reads."""
-    mat, nt, out = _material(name)
+    mat, nt, out = node_material(name)
     d = nt.nodes.new("ShaderNodeBsdfDiffuse")
     nt.links.new(d.outputs[0], out.inputs["Surface"])
     if color is not None:
@@ -315,7 +294,7 @@ def _tile_mesh(name, cells=8, second_uv=False):
 def attributes_scene():
     """Colour attributes (byte per corner, float per vertex), a face attribute through a ramp and
     a named second UV map (on a mirrored tile), each on a diffuse tile."""
-    sc = _render_scene()
+    sc = new_scene(SIZE, world=(0.04, 0.04, 0.05))
     mesh = _tile_mesh("tile")
 
     def attribute(name, output="Color", kind="ShaderNodeAttribute"):
@@ -359,7 +338,7 @@ def objects_scene():
     """One material over four objects reading Object Info: colour times a factor of the random
     number, plus the pass indices of the object and the material; two objects share a mesh and
     one is a collection instance (its random number the instance's)."""
-    sc = _render_scene()
+    sc = new_scene(SIZE, world=(0.04, 0.04, 0.05))
     mat, nt, d = _diffuse("info")
     mat.pass_index = 3
     info = nt.nodes.new("ShaderNodeObjectInfo")
@@ -423,7 +402,7 @@ def normals_scene():
     """Normals from nodes on diffuse tiles lit at an angle: a tangent-space Normal Map from an
     image (on a mirrored tile: its tangent sign), a Bump from a Noise Texture, the Material
     Output's displacement as bump, and a tile seen from behind coloured by Backfacing."""
-    sc = _render_scene()
+    sc = new_scene(SIZE, world=(0.04, 0.04, 0.05))
     mesh = _tile_mesh("tile", cells=4)
     mat, nt, d = _diffuse("normal map")
     d.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1)
@@ -475,12 +454,12 @@ def light_path_scene():
     """Two balls the camera sees red and a mirror floor reflects blue, by a Light Path node's Is
     Camera Ray: on the left mixing two diffuse shaders (lit by an area light), on the right two
     emission shaders (the emission found by camera rays and by rays off the mirror)."""
-    sc = _render_scene(world=(0.0, 0.0, 0.0))
+    sc = new_scene(SIZE, world=(0.0, 0.0, 0.0))
     # The mirror's caustics on the balls (lit through it by the area light): not what this is about.
     sc.cycles.caustics_reflective = sc.ember.caustics_reflective = False
     bpy.ops.mesh.primitive_plane_add(size=12)
     floor = bpy.context.active_object
-    mat, nt, out = _material("mirror")
+    mat, nt, out = node_material("mirror")
     g = nt.nodes.new("ShaderNodeBsdfAnisotropic")
     g.distribution = "GGX"
     g.inputs["Roughness"].default_value = 0.0
@@ -490,7 +469,7 @@ def light_path_scene():
         bpy.ops.mesh.primitive_uv_sphere_add(radius=0.9, location=(x, 0, 1.0), segments=32, ring_count=16)
         bpy.ops.object.shade_smooth()
         ball = bpy.context.active_object
-        mat, nt, out = _material(f"camera red {shader}")
+        mat, nt, out = node_material(f"camera red {shader}")
         red, blue = nt.nodes.new(shader), nt.nodes.new(shader)
         red.inputs["Color"].default_value, blue.inputs["Color"].default_value = (0.8, 0.1, 0.1, 1), (0.1, 0.2, 0.8, 1)
         if strength is not None:
