@@ -146,3 +146,18 @@ def compare(ember, cycles, n, tol):
     assert not len(bad), [(f"sphere {r // 4} quadrant {r % 4} channel {ch}", f"{d[r, ch]:+.2%} (se {se[r, ch]:.2%})")
                           for r, ch in bad]
     return d, se
+
+
+def spheres_agree_with_cycles(specs, samples, runs, tol):
+    """Build the spheres of `specs`, render them with Cycles and Ember (the add-on registered
+    for the time of it) and compare every quadrant of every sphere (compare)."""
+    import ember
+    bpy = bpy_module()
+    ember.register()
+    try:
+        sc = build(bpy, specs)
+        cycles = cycles_images(bpy, sc, samples, runs)
+        emb = ember_images(bpy, samples, runs)
+    finally:
+        ember.unregister()
+    compare(emb, cycles, len(specs), tol)

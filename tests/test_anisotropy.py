@@ -221,13 +221,4 @@ def test_anisotropic_spheres_render_as_cycles():
     each sphere, per channel, within 1 % plus the noise band of Cycles' (Multiscatter GGX,
     Blender's default, where not said)."""
     import feature_spheres as fs
-    bpy = fs.bpy_module()
-    import ember
-    ember.register()
-    try:
-        sc = fs.build(bpy, SPHERES)
-        cycles = fs.cycles_images(bpy, sc, SAMPLES, RUNS)
-        emb = fs.ember_images(bpy, SAMPLES, RUNS)
-    finally:
-        ember.unregister()
-    fs.compare(emb, cycles, len(SPHERES), TOL)
+    fs.spheres_agree_with_cycles(SPHERES, SAMPLES, RUNS, TOL)

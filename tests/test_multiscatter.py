@@ -23,6 +23,7 @@ from ember.engine.bsdf.lobes import inputs
 from ember.engine.scene import (DIST_ASHIKHMIN_SHIRLEY, DIST_BECKMANN, DIST_GGX, DIST_MULTI_GGX, FRESNEL_DIELECTRIC,
                                 FRESNEL_F82, FRESNEL_NONE,
                                 LOBE_DIELECTRIC, LOBE_MICROFACET, LOBE_OREN_NAYAR, MAT_NODES, Materials)
+from feature_spheres import bpy_module, node_material
 
 N = 200_000
 ROUGHNESS = (0.3, 0.7, 1.0)
@@ -269,27 +270,6 @@ def test_photons_see_the_adjoint_of_multiscatter(kind):
 
 # ---------------------------------------------------------------- with Blender
 
-def _bpy():
-    import os
-    import tempfile
-    os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="ember_bur_"))
-    return pytest.importorskip("bpy")
-
-
-def _material(bpy, name, kind, **inputs_and_props):
-    mat = bpy.data.materials.new(name)
-    nt = mat.node_tree
-    nt.nodes.clear()
-    node = nt.nodes.new(kind)
-    for key, value in inputs_and_props.items():
-        if key in node.inputs:
-            node.inputs[key].default_value = value
-        else:
-            setattr(node, key, value)
-    nt.links.new(node.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
-    return mat
-
-
 def _export(bpy, *materials):
     """A plane per material (and a camera); (Materials, {name: its lobe rows})."""
     from ember.engine.blender.export import export_scene
@@ -322,26 +302,26 @@ def test_the_distribution_and_diffuse_roughness_reach_the_lobes(path):
     the Principled's metallic, transmission and specular lobes; Beckmann on Glossy and Metallic,
     Ashikhmin-Shirley on Glossy, Beckmann on Glass; Diffuse and Principled diffuse roughness: Oren-Nayar,
     Lambert at 0."""
-    bpy = _bpy()
+    bpy = bpy_module()
     import ember
     from ember.engine import scene as S
     ember.register()
     try:
         bpy.ops.wm.read_factory_settings(use_empty=True)
         mats = [
-            _material(bpy, "glossy", "ShaderNodeBsdfAnisotropic"),
-            _material(bpy, "glossy_ggx", "ShaderNodeBsdfAnisotropic", distribution="GGX"),
-            _material(bpy, "metal", "ShaderNodeBsdfMetallic"),
-            _material(bpy, "glass", "ShaderNodeBsdfGlass", Roughness=0.4),
-            _material(bpy, "principled", "ShaderNodeBsdfPrincipled", Metallic=0.3, **{"Transmission Weight": 0.3,
+            node_material(bpy, "glossy", "ShaderNodeBsdfAnisotropic"),
+            node_material(bpy, "glossy_ggx", "ShaderNodeBsdfAnisotropic", distribution="GGX"),
+            node_material(bpy, "metal", "ShaderNodeBsdfMetallic"),
+            node_material(bpy, "glass", "ShaderNodeBsdfGlass", Roughness=0.4),
+            node_material(bpy, "principled", "ShaderNodeBsdfPrincipled", Metallic=0.3, **{"Transmission Weight": 0.3,
                                                                                      "Diffuse Roughness": 0.6}),
-            _material(bpy, "principled_ggx", "ShaderNodeBsdfPrincipled", distribution="GGX"),
-            _material(bpy, "rough_diffuse", "ShaderNodeBsdfDiffuse", Roughness=0.5),
-            _material(bpy, "diffuse", "ShaderNodeBsdfDiffuse"),
-            _material(bpy, "glossy_beckmann", "ShaderNodeBsdfAnisotropic", distribution="BECKMANN"),
-            _material(bpy, "metal_beckmann", "ShaderNodeBsdfMetallic", distribution="BECKMANN"),
-            _material(bpy, "glass_beckmann", "ShaderNodeBsdfGlass", Roughness=0.4, distribution="BECKMANN"),
-            _material(bpy, "glossy_as", "ShaderNodeBsdfAnisotropic", distribution="ASHIKHMIN_SHIRLEY"),
+            node_material(bpy, "principled_ggx", "ShaderNodeBsdfPrincipled", distribution="GGX"),
+            node_material(bpy, "rough_diffuse", "ShaderNodeBsdfDiffuse", Roughness=0.5),
+            node_material(bpy, "diffuse", "ShaderNodeBsdfDiffuse"),
+            node_material(bpy, "glossy_beckmann", "ShaderNodeBsdfAnisotropic", distribution="BECKMANN"),
+            node_material(bpy, "metal_beckmann", "ShaderNodeBsdfMetallic", distribution="BECKMANN"),
+            node_material(bpy, "glass_beckmann", "ShaderNodeBsdfGlass", Roughness=0.4, distribution="BECKMANN"),
+            node_material(bpy, "glossy_as", "ShaderNodeBsdfAnisotropic", distribution="ASHIKHMIN_SHIRLEY"),
         ]
         if path == "nodes":
             for mat, socket in zip(mats, ["Roughness", "Roughness", "Roughness", "Roughness", "Roughness",
@@ -399,21 +379,21 @@ def _furnace_scene(bpy, distribution="MULTI_GGX"):
     for row, what in enumerate(ROWS):
         for col, r in enumerate(COLUMNS):
             if what == "gold":
-                mat = _material(bpy, f"{what}{r}", "ShaderNodeBsdfPrincipled", Metallic=1.0, Roughness=r,
+                mat = node_material(bpy, f"{what}{r}", "ShaderNodeBsdfPrincipled", Metallic=1.0, Roughness=r,
                                 distribution=distribution, **{"Base Color": (1.0, 0.78, 0.34, 1.0)})
             elif what == "plastic":
-                mat = _material(bpy, f"{what}{r}", "ShaderNodeBsdfPrincipled", Roughness=r, distribution=distribution,
+                mat = node_material(bpy, f"{what}{r}", "ShaderNodeBsdfPrincipled", Roughness=r, distribution=distribution,
                                 **{"Base Color": (0.05, 0.1, 0.3, 1.0)})
             elif what == "glass":
-                mat = _material(bpy, f"{what}{r}", "ShaderNodeBsdfGlass", Roughness=r, distribution=distribution)
+                mat = node_material(bpy, f"{what}{r}", "ShaderNodeBsdfGlass", Roughness=r, distribution=distribution)
             elif what == "oren_nayar":
-                mat = _material(bpy, f"{what}{r}", "ShaderNodeBsdfDiffuse", Roughness=r,
+                mat = node_material(bpy, f"{what}{r}", "ShaderNodeBsdfDiffuse", Roughness=r,
                                 Color=(0.5, 0.3, 0.2, 1.0))
             elif what == "beckmann":
-                mat = _material(bpy, f"{what}{r}", "ShaderNodeBsdfMetallic", Roughness=r, distribution="BECKMANN",
+                mat = node_material(bpy, f"{what}{r}", "ShaderNodeBsdfMetallic", Roughness=r, distribution="BECKMANN",
                                 **{"Base Color": (0.95, 0.64, 0.54, 1.0)})
             else:
-                mat = _material(bpy, f"{what}{r}", "ShaderNodeBsdfAnisotropic", Roughness=r,
+                mat = node_material(bpy, f"{what}{r}", "ShaderNodeBsdfAnisotropic", Roughness=r,
                                 distribution="ASHIKHMIN_SHIRLEY", Color=(0.8, 0.8, 0.8, 1.0))
             bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=0.4,
                                                  location=(col - 1.0, 0.0, _row_z(row)))
@@ -492,7 +472,7 @@ def test_spheres_in_a_white_furnace_render_as_cycles():
     degrees of freedom) of Cycles'."""
     from scipy import stats as st
     from stats import sidak_alpha
-    bpy = _bpy()
+    bpy = bpy_module()
     import ember
     ember.register()
     try:

@@ -258,13 +258,4 @@ def test_film_conductor_and_refraction_spheres_render_as_cycles():
     conductor Metallic BSDF (gold's n, k); a Refraction BSDF; Principled transmission with a
     Specular Tint; a Beckmann Glass BSDF: each quadrant of each sphere, per channel, within 1 % plus the noise band."""
     import feature_spheres as fs
-    bpy = fs.bpy_module()
-    import ember
-    ember.register()
-    try:
-        sc = fs.build(bpy, SPHERES)
-        cycles = fs.cycles_images(bpy, sc, SAMPLES, RUNS)
-        emb = fs.ember_images(bpy, SAMPLES, RUNS)
-    finally:
-        ember.unregister()
-    fs.compare(emb, cycles, len(SPHERES), TOL)
+    fs.spheres_agree_with_cycles(SPHERES, SAMPLES, RUNS, TOL)
