@@ -72,14 +72,15 @@ def build(bpy, specs):
     return sc
 
 
-def cycles_images(bpy, sc, samples, runs, seed=100):
-    """(runs, H, W, 3) Cycles' renders (CPU, no clamping, box filter, bounces 16)."""
+def cycles_images(bpy, sc, samples, runs, seed=100, bounces=16):
+    """(runs, H, W, 3) Cycles' renders (CPU, no clamping, box filter, every bounce limit
+    `bounces`, caustics on)."""
     from ember.engine import imageio
     c = sc.cycles
     sc.render.engine = "CYCLES"
     c.device, c.samples, c.use_adaptive_sampling, c.use_denoising = "CPU", samples, False, False
     c.blur_glossy, c.sample_clamp_direct, c.sample_clamp_indirect = 0.0, 0.0, 0.0
-    c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = c.transparent_max_bounces = 16
+    c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = c.transparent_max_bounces = bounces
     c.caustics_reflective = c.caustics_refractive = True
     c.pixel_filter_type = "BOX"
     c.use_animated_seed = False

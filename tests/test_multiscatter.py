@@ -417,26 +417,8 @@ def _masks():
 
 
 def _cycles_furnace(bpy, sc, samples):
-    import tempfile
-    from ember.engine import imageio
-    c = sc.cycles
-    sc.render.engine = "CYCLES"
-    c.device, c.samples, c.use_adaptive_sampling, c.use_denoising = "CPU", samples, False, False
-    c.blur_glossy, c.sample_clamp_direct, c.sample_clamp_indirect = 0.0, 0.0, 0.0
-    c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = c.transparent_max_bounces = 63
-    c.pixel_filter_type = "BOX"
-    c.use_animated_seed = False
-    sc.render.use_compositing = sc.render.use_sequencer = False
-    sc.render.image_settings.file_format, sc.render.image_settings.color_depth = "OPEN_EXR", "32"
-    sc.render.use_file_extension = False
-    images = []
-    with tempfile.TemporaryDirectory(prefix="ember_ms_") as tmp:
-        for k in range(RUNS):
-            c.seed = 100 + k
-            sc.render.filepath = f"{tmp}/run{k}.exr"
-            bpy.ops.render.render(write_still=True)
-            images.append(imageio.read_rgb(sc.render.filepath).astype(np.float64))
-    return np.stack(images)
+    from feature_spheres import cycles_images
+    return cycles_images(bpy, sc, samples, RUNS, bounces=63)
 
 
 def _ember_furnace(bpy, samples):
