@@ -9,13 +9,12 @@ within TOL.
 """
 import math
 
-import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
 
 import ember  # noqa: E402
-from ember.engine.blender import final  # noqa: E402
+from cycles_renders import cycles_image, ember_image  # noqa: E402
 
 pytestmark = pytest.mark.blender
 SIZE = 16
@@ -74,41 +73,10 @@ def _scene(color, rotation):
     return sc
 
 
-class _Film:
-    film = None
-
-    def on_progress(self, layer, progress):
-        self.film = progress.film
-
-
-def _ember(sc):
-    sc.render.engine = "EMBER"
-    sc.ember.integrator, sc.ember.samples = "PATH", SAMPLES
-    grab = _Film()
-    final.listeners.append(grab)
-    try:
-        bpy.ops.render.render()
-    finally:
-        final.listeners.remove(grab)
-    return grab.film.mean()
-
-
-def _cycles(sc, path):
-    sc.render.engine = "CYCLES"
-    sc.cycles.samples = SAMPLES
-    sc.render.filepath = str(path)
-    sc.render.image_settings.file_format = "OPEN_EXR"
-    bpy.ops.render.render(write_still=True)
-    img = bpy.data.images.load(str(path))
-    pixels = np.array(img.pixels[:]).reshape(SIZE, SIZE, 4)[:, :, :3]
-    bpy.data.images.remove(img)
-    return pixels
-
-
 @pytest.mark.parametrize("case", list(CASES))
 def test_normal_mapped_diffuse_light_matches_cycles(case, tmp_path):
     sc = _scene(*CASES[case])
-    cycles = _cycles(sc, tmp_path / "cycles.exr").mean()
-    ember_mean = _ember(sc).mean()
+    cycles = cycles_image(sc, SAMPLES, 0, tmp_path / "cycles.exr").mean()
+    ember_mean = ember_image(sc, "PATH", SAMPLES, 0).mean()
     assert cycles > 0.01
     assert ember_mean == pytest.approx(cycles, rel=TOL), (ember_mean / cycles)
